@@ -1,0 +1,66 @@
+//! Ray-tracing backends behind one trait. The backend is picked once, at the top
+//! ([`with_backend`]); everything below is generic over [`Accel`] and monomorphised.
+mod brute;
+mod bvh;
+
+pub use brute::BruteForce;
+pub use bvh::BvhAccel;
+
+use crate::Result;
+use crate::geometry::{Hit, Ray};
+use crate::scene::Scene;
+
+/// A ray-tracing backend over a scene's triangles (in the scene's order).
+pub trait Accel: Sync {
+    /// Short name, written into image metadata.
+    fn name(&self) -> &'static str;
+
+    /// The closest hit along `ray` with `t ∈ (0, ∞)`. Invalid rays (NaN/inf) hit nothing.
+    fn intersect(&self, ray: &Ray) -> Option<Hit>;
+
+    /// Whether anything lies along `ray` with `t ∈ (0, t_max)`. Invalid rays are unoccluded.
+    fn occluded(&self, ray: &Ray, t_max: f32) -> bool;
+
+    /// Closest hits for a batch of rays (the packet hook: backends with packet traversal
+    /// override it).
+    fn intersect_batch(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        for (r, h) in rays.iter().zip(hits.iter_mut()) {
+            *h = self.intersect(r);
+        }
+    }
+
+    /// Occlusion for a batch of rays with their own `t_max`.
+    fn occluded_batch(&self, rays: &[Ray], t_max: &[f32], out: &mut [bool]) {
+        for ((r, &t), o) in rays.iter().zip(t_max).zip(out.iter_mut()) {
+            *o = self.occluded(r, t);
+        }
+    }
+}
+
+/// The user's backend choice.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum BackendKind {
+    /// Pure-Rust compressed wide BVH (obvhs).
+    Bvh,
+    /// Intel Embree (build with `--features embree`).
+    Embree,
+    /// Embree when compiled in, otherwise bvh.
+    Auto,
+}
+
+/// Code that runs once a backend is built: the generic entry point below the dispatch.
+pub trait WithAccel {
+    type Output;
+    fn run<A: Accel>(self, accel: &A) -> Self::Output;
+}
+
+/// Builds the chosen backend over `scene` and runs `job` with it: the one place where the
+/// backend is chosen at run time.
+pub fn with_backend<J: WithAccel>(kind: BackendKind, scene: &Scene, job: J) -> Result<J::Output> {
+    match kind {
+        BackendKind::Bvh | BackendKind::Auto => Ok(job.run(&BvhAccel::build(scene))),
+        BackendKind::Embree => Err(crate::Error::Backend(
+            "the embree backend is not compiled in: rebuild with `cargo build --release --features embree`".into(),
+        )),
+    }
+}

@@ -1,0 +1,255 @@
+//! The command line: `zvidpt render`, `zvidpt diff`.
+use crate::accel::{Accel, BackendKind, WithAccel, with_backend};
+use crate::film::{self, Image, Metadata};
+use crate::integrator::{Integrator, PathTracer};
+use crate::render::{RenderSettings, RenderStats, render};
+use crate::scene::Scene;
+use crate::{Error, Result};
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Parser)]
+#[command(
+    name = "zvidpt",
+    version,
+    about = "Zero Variance Importance Sampling Driven Potential Tracing: a CPU renderer"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Render a scene to an EXR (linear float, with render metadata) and a PNG (sRGB).
+    Render(RenderArgs),
+    /// Compare an image with a reference: prints MSE and relMSE.
+    Diff(DiffArgs),
+    /// Print an EXR's size, render metadata and per-channel mean.
+    Info(InfoArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct InfoArgs {
+    /// An EXR written by zvidpt (or any RGB EXR).
+    pub image: PathBuf,
+}
+
+/// Light-transport algorithm.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum IntegratorKind {
+    /// Path tracing with next event estimation (the paper's baseline).
+    Path,
+}
+
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// Scene file, or a folder holding `scene.toml`.
+    #[arg(default_value = "scenes/cornell-paper")]
+    pub scene: PathBuf,
+    /// Output EXR (linear float RGB, per-pixel variance, render metadata).
+    #[arg(short, long, default_value = "render.exr")]
+    pub output: PathBuf,
+    /// Output PNG (sRGB). Default: the EXR's path with a .png extension.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    /// Do not write a PNG.
+    #[arg(long, conflicts_with = "png")]
+    pub no_png: bool,
+    /// PNG exposure in stops (pixel values are scaled by 2^EV before sRGB encoding).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub exposure: f32,
+    /// Samples per pixel [default: 64, or unlimited when --time is given].
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Time budget in seconds: render whole passes until it is used up.
+    #[arg(long)]
+    pub time: Option<f64>,
+    /// Light-transport algorithm.
+    #[arg(long, value_enum, default_value_t = IntegratorKind::Path)]
+    pub integrator: IntegratorKind,
+    /// Ray-tracing backend (auto: Embree when compiled in, otherwise bvh).
+    #[arg(long, value_enum, default_value_t = BackendKind::Auto)]
+    pub backend: BackendKind,
+    /// Worker threads [default: one per core].
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Random seed; the same seed, scene and flags give the same image bytes.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Override the scene's resolution, as WIDTHxHEIGHT (the view is kept).
+    #[arg(long, value_parser = parse_resolution)]
+    pub resolution: Option<(u32, u32)>,
+    /// Tile side in pixels (does not change the image).
+    #[arg(long, default_value_t = 32)]
+    pub tile_size: u32,
+    /// No progress bar.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct DiffArgs {
+    /// The image to measure.
+    pub image: PathBuf,
+    /// The reference image.
+    pub reference: PathBuf,
+    /// Write a false-colour PNG of per-pixel relative squared error.
+    #[arg(long)]
+    pub error_map: Option<PathBuf>,
+}
+
+fn parse_resolution(s: &str) -> std::result::Result<(u32, u32), String> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or("expected WIDTHxHEIGHT, e.g. 256x192")?;
+    let w = w.trim().parse().map_err(|_| format!("bad width `{w}`"))?;
+    let h = h.trim().parse().map_err(|_| format!("bad height `{h}`"))?;
+    Ok((w, h))
+}
+
+/// Runs a parsed command line. Warnings go to stderr; results to stdout.
+pub fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Render(args) => run_render(&args).map(|_| ()),
+        Command::Diff(args) => run_diff(&args),
+        Command::Info(args) => run_info(&args),
+    }
+}
+
+/// The default scene path also works from outside the source tree.
+fn locate_scene(path: &Path) -> PathBuf {
+    if !path.exists() && path.is_relative() {
+        let fallback = Path::new(env!("CARGO_MANIFEST_DIR")).join(path);
+        if fallback.exists() {
+            return fallback;
+        }
+    }
+    path.to_path_buf()
+}
+
+/// Renders with whichever backend the user chose: the one dynamic choice, at the top.
+struct RenderJob<'a> {
+    scene: &'a Scene,
+    integrator: IntegratorKind,
+    settings: &'a RenderSettings,
+}
+
+impl WithAccel for RenderJob<'_> {
+    type Output = Result<(Image, RenderStats, &'static str)>;
+    fn run<A: Accel>(self, accel: &A) -> Self::Output {
+        let (image, stats) = match self.integrator {
+            IntegratorKind::Path => run_integrator(self.scene, accel, &PathTracer::default(), self.settings)?,
+        };
+        Ok((image, stats, accel.name()))
+    }
+}
+
+fn run_integrator<A: Accel, I: Integrator>(
+    scene: &Scene,
+    accel: &A,
+    integrator: &I,
+    settings: &RenderSettings,
+) -> Result<(Image, RenderStats)> {
+    render(scene, accel, integrator, settings)
+}
+
+/// Renders as the command line says; returns what it measured.
+pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
+    if args.spp == Some(0) {
+        return Err(Error::InvalidOption("--spp must be at least 1".into()));
+    }
+    if !args.exposure.is_finite() {
+        return Err(Error::InvalidOption("--exposure must be finite".into()));
+    }
+    let png = (!args.no_png).then(|| args.png.clone().unwrap_or_else(|| args.output.with_extension("png")));
+    // Fail before rendering if an output cannot be written.
+    film::check_writable(&args.output)?;
+    if let Some(p) = &png {
+        film::check_writable(p)?;
+    }
+    let mut scene = Scene::load(locate_scene(&args.scene))?;
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    if let Some((w, h)) = args.resolution {
+        scene.set_resolution(w, h)?;
+    }
+    let settings = RenderSettings {
+        spp: args.spp.or(if args.time.is_some() { None } else { Some(64) }),
+        time_limit: args.time,
+        seed: args.seed,
+        threads: args.threads,
+        tile_size: args.tile_size,
+        progress: !args.quiet,
+    };
+    let integrator = args.integrator;
+    let (image, stats, backend) =
+        with_backend(args.backend, &scene, RenderJob { scene: &scene, integrator, settings: &settings })??;
+
+    let mut meta = Metadata::default();
+    meta.push("scene", scene.path.display());
+    meta.push("integrator", integrator.to_possible_value().map_or("?".into(), |v| v.get_name().to_string()));
+    meta.push("backend", backend);
+    meta.push("seed", args.seed);
+    meta.push("seconds", format!("{:.3}", stats.seconds));
+    meta.push("threads", stats.threads);
+    meta.push("rays", stats.rays);
+    meta.push("version", crate::VERSION);
+    film::write_exr(&args.output, &image, &meta)?;
+    if let Some(p) = &png {
+        film::write_png(p, &image, args.exposure)?;
+    }
+    println!(
+        "{} {}x{}, {} spp, {:.2} s, {:.2} M samples/s, {:.2} M rays/s ({}, {}, {} threads) -> {}{}",
+        scene.name,
+        image.width,
+        image.height,
+        stats.spp,
+        stats.seconds,
+        stats.samples_per_second() / 1e6,
+        stats.rays_per_second() / 1e6,
+        meta.get("integrator").unwrap_or("?"),
+        backend,
+        stats.threads,
+        args.output.display(),
+        png.map_or(String::new(), |p| format!(", {}", p.display())),
+    );
+    Ok(stats)
+}
+
+fn run_diff(args: &DiffArgs) -> Result<()> {
+    let (image, _) = film::read_exr(&args.image)?;
+    let (reference, _) = film::read_exr(&args.reference)?;
+    let m = film::metrics(&image, &reference)?;
+    if let Some(p) = &args.error_map {
+        film::error_map_png(p, &image, &reference)?;
+    }
+    println!("MSE {:.6e}  relMSE {:.6e}", m.mse, m.rel_mse);
+    Ok(())
+}
+
+fn run_info(args: &InfoArgs) -> Result<()> {
+    let (image, meta) = film::read_exr(&args.image)?;
+    let m = image.mean();
+    print!(
+        "{}: {}x{}, mean RGB ({:.5}, {:.5}, {:.5})",
+        args.image.display(),
+        image.width,
+        image.height,
+        m[0],
+        m[1],
+        m[2]
+    );
+    // Standard error of the image mean from the per-pixel sample variances.
+    match (&image.variance, image.spp) {
+        (Some(v), spp) if spp > 1 => {
+            let n = v.len() as f64;
+            let se = [0, 1, 2].map(|c| (v.iter().map(|p| p[c] as f64).sum::<f64>() / spp as f64).sqrt() / n);
+            println!(" ± ({:.5}, {:.5}, {:.5}) (1 s.e.)", se[0], se[1], se[2]);
+        }
+        _ => println!(),
+    }
+    for (k, v) in &meta.entries {
+        println!("  {k} = {v}");
+    }
+    Ok(())
+}

@@ -1,0 +1,79 @@
+use super::{Image, Metadata, write_atomically};
+use crate::{Error, Result};
+use exr::prelude::*;
+use std::path::Path;
+
+/// Channel names: RGB, and the per-pixel sample variance as a `variance` layer when present.
+const RGB: [&str; 3] = ["R", "G", "B"];
+const VARIANCE: [&str; 3] = ["variance.R", "variance.G", "variance.B"];
+
+/// Writes linear float RGB (and variance, if any), with `meta` as string header attributes
+/// named `zvidpt.<key>`.
+pub fn write_exr(path: &Path, image: &Image, meta: &Metadata) -> Result<()> {
+    let size = (image.width as usize, image.height as usize);
+    let mut channels: Vec<AnyChannel<FlatSamples>> = Vec::new();
+    for c in 0..3 {
+        channels.push(AnyChannel::new(RGB[c], FlatSamples::F32(image.pixels.iter().map(|p| p[c]).collect())));
+        if let Some(v) = &image.variance {
+            channels.push(AnyChannel::new(VARIANCE[c], FlatSamples::F32(v.iter().map(|p| p[c]).collect())));
+        }
+    }
+    let mut attributes = LayerAttributes::named("");
+    attributes.layer_name = None;
+    for (k, v) in &meta.entries {
+        attributes
+            .other
+            .insert(Text::from(format!("zvidpt.{k}").as_str()), AttributeValue::Text(Text::from(v.as_str())));
+    }
+    attributes.other.insert(Text::from("zvidpt.spp"), AttributeValue::Text(Text::from(image.spp.to_string().as_str())));
+    let layer = Layer::new(size, attributes, Encoding::SMALL_LOSSLESS, AnyChannels::sort(channels.into()));
+    let exr_image = exr::image::Image::from_layer(layer);
+    write_atomically(path, |w| {
+        exr_image.write().to_buffered(w).map_err(|e| Error::Image { path: path.to_path_buf(), message: e.to_string() })
+    })
+}
+
+/// Reads an EXR's R, G, B (and variance layer, if present) and its `zvidpt.*` metadata.
+pub fn read_exr(path: &Path) -> Result<(Image, Metadata)> {
+    if !path.is_file() {
+        return Err(Error::io(
+            path,
+            std::fs::File::open(path).err().unwrap_or_else(|| std::io::Error::other("not a file")),
+        ));
+    }
+    let err = |message: String| Error::Image { path: path.to_path_buf(), message };
+    let img = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| err(e.to_string()))?;
+    let layer = &img.layer_data;
+    let (w, h) = (layer.size.width(), layer.size.height());
+    let find = |name: &str| {
+        layer
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string() == name)
+            .map(|c| c.sample_data.values_as_f32().collect::<Vec<f32>>())
+    };
+    let planes: Vec<Vec<f32>> =
+        RGB.iter().map(|n| find(n).ok_or_else(|| err(format!("no `{n}` channel")))).collect::<Result<_>>()?;
+    let pixels = (0..w * h).map(|i| [planes[0][i], planes[1][i], planes[2][i]]).collect();
+    let variance = VARIANCE
+        .iter()
+        .map(|n| find(n))
+        .collect::<Option<Vec<_>>>()
+        .map(|v| (0..w * h).map(|i| [v[0][i], v[1][i], v[2][i]]).collect());
+    let mut meta = Metadata::default();
+    for (k, v) in &layer.attributes.other {
+        if let (Some(key), AttributeValue::Text(t)) = (k.to_string().strip_prefix("zvidpt."), v) {
+            meta.push(key, t.to_string());
+        }
+    }
+    let spp = meta.get("spp").and_then(|s| s.parse().ok()).unwrap_or(0);
+    Ok((Image { width: w as u32, height: h as u32, pixels, variance, spp }, meta))
+}

@@ -1,0 +1,84 @@
+use super::Image;
+use super::png_out::write_rgb8;
+use crate::{Error, Result};
+use std::path::Path;
+
+/// Error of an image against a reference (ALGORITHM.md §6).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Metrics {
+    /// Mean over pixels and channels of `(a − b)²`.
+    pub mse: f64,
+    /// Mean of `(a − b)² / (b² + 0.01)`.
+    pub rel_mse: f64,
+}
+
+fn same_size(a: &Image, b: &Image) -> Result<()> {
+    if (a.width, a.height) != (b.width, b.height) {
+        return Err(Error::InvalidOption(format!(
+            "image sizes differ: {}x{} vs {}x{}",
+            a.width, a.height, b.width, b.height
+        )));
+    }
+    Ok(())
+}
+
+/// MSE and relMSE of `image` against `reference`.
+pub fn metrics(image: &Image, reference: &Image) -> Result<Metrics> {
+    same_size(image, reference)?;
+    let (mut se, mut rel) = (0.0f64, 0.0f64);
+    for (a, b) in image.pixels.iter().zip(&reference.pixels) {
+        for c in 0..3 {
+            let d = (a[c] as f64 - b[c] as f64).powi(2);
+            se += d;
+            rel += d / ((b[c] as f64).powi(2) + 0.01);
+        }
+    }
+    let n = (image.pixels.len() * 3).max(1) as f64;
+    Ok(Metrics { mse: se / n, rel_mse: rel / n })
+}
+
+/// A false-colour PNG of per-pixel relative squared error (mean over channels), on a log scale
+/// from 1e-4 (dark blue) to 1 (yellow-white).
+pub fn error_map_png(path: &Path, image: &Image, reference: &Image) -> Result<()> {
+    same_size(image, reference)?;
+    let bytes: Vec<u8> = image
+        .pixels
+        .iter()
+        .zip(&reference.pixels)
+        .flat_map(|(a, b)| {
+            let e: f64 =
+                (0..3).map(|c| (a[c] as f64 - b[c] as f64).powi(2) / ((b[c] as f64).powi(2) + 0.01)).sum::<f64>() / 3.0;
+            let t = ((e.max(1e-12).log10() + 4.0) / 4.0).clamp(0.0, 1.0) as f32;
+            colormap(t)
+        })
+        .collect();
+    write_rgb8(path, image.width, image.height, &bytes)
+}
+
+/// A perceptually ordered dark-blue → magenta → orange → pale-yellow ramp.
+fn colormap(t: f32) -> [u8; 3] {
+    const STOPS: [[f32; 3]; 5] =
+        [[0.0, 0.0, 0.02], [0.25, 0.05, 0.45], [0.72, 0.18, 0.45], [0.98, 0.55, 0.12], [0.99, 0.99, 0.75]];
+    let x = t * (STOPS.len() - 1) as f32;
+    let i = (x as usize).min(STOPS.len() - 2);
+    let f = x - i as f32;
+    let c = [0, 1, 2].map(|k| STOPS[i][k] * (1.0 - f) + STOPS[i + 1][k] * f);
+    c.map(|v| (v * 255.0 + 0.5) as u8)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mse_and_rel_mse() {
+        let a = Image { width: 2, height: 1, pixels: vec![[1.0, 1.0, 1.0], [0.0, 0.0, 0.0]], variance: None, spp: 1 };
+        let b = Image { pixels: vec![[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]], ..a.clone() };
+        let m = metrics(&a, &b).unwrap();
+        assert!((m.mse - 0.5).abs() < 1e-12);
+        assert!((m.rel_mse - 0.5 / 0.01).abs() < 1e-9);
+        assert_eq!(metrics(&a, &a).unwrap().mse, 0.0);
+        let c = Image { width: 1, height: 2, ..a.clone() };
+        assert!(metrics(&a, &c).is_err());
+    }
+}

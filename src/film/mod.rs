@@ -1,0 +1,55 @@
+//! Images: float RGB with optional per-pixel sample variance, EXR (with render metadata) and
+//! PNG output written atomically, and the error metrics of ALGORITHM.md §6.
+mod atomic;
+mod exr_io;
+mod metrics;
+mod png_out;
+
+pub use atomic::{check_writable, write_atomically};
+pub use exr_io::{read_exr, write_exr};
+pub use metrics::{Metrics, error_map_png, metrics};
+pub use png_out::write_png;
+
+/// A float RGB image, row-major from the top-left.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    /// Pixel values (mean radiance of the pixel's samples).
+    pub pixels: Vec<[f32; 3]>,
+    /// Unbiased sample variance of one sample, per pixel and channel, when known.
+    pub variance: Option<Vec<[f32; 3]>>,
+    /// Samples per pixel behind `pixels` (0 when unknown, e.g. read from a foreign EXR).
+    pub spp: u32,
+}
+
+impl Image {
+    /// Mean over pixels, per channel.
+    #[must_use]
+    pub fn mean(&self) -> [f64; 3] {
+        let mut s = [0.0f64; 3];
+        for p in &self.pixels {
+            for c in 0..3 {
+                s[c] += p[c] as f64;
+            }
+        }
+        s.map(|x| x / self.pixels.len().max(1) as f64)
+    }
+}
+
+/// Render facts written into an image's metadata.
+#[derive(Clone, Debug, Default)]
+pub struct Metadata {
+    pub entries: Vec<(String, String)>,
+}
+
+impl Metadata {
+    pub fn push(&mut self, key: &str, value: impl ToString) {
+        self.entries.push((key.to_string(), value.to_string()));
+    }
+
+    #[must_use]
+    pub fn get(&self, key: &str) -> Option<&str> {
+        self.entries.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
+    }
+}

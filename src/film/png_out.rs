@@ -1,0 +1,34 @@
+use super::{Image, write_atomically};
+use crate::{Error, Result};
+use std::path::Path;
+
+/// Linear to sRGB transfer.
+#[inline]
+fn srgb_encode(x: f32) -> f32 {
+    if x <= 0.003_130_8 { 12.92 * x } else { 1.055 * x.powf(1.0 / 2.4) - 0.055 }
+}
+
+/// Writes an 8-bit sRGB PNG of `image` scaled by `2^exposure` (clamped, no tone curve).
+pub fn write_png(path: &Path, image: &Image, exposure: f32) -> Result<()> {
+    let scale = exposure.exp2();
+    let bytes: Vec<u8> = image
+        .pixels
+        .iter()
+        .flat_map(|p| p.map(|c| (srgb_encode((c * scale).clamp(0.0, 1.0)) * 255.0 + 0.5) as u8))
+        .collect();
+    write_rgb8(path, image.width, image.height, &bytes)
+}
+
+/// Writes 8-bit RGB bytes as a PNG, atomically.
+pub(crate) fn write_rgb8(path: &Path, width: u32, height: u32, bytes: &[u8]) -> Result<()> {
+    let err = |e: png::EncodingError| Error::Image { path: path.to_path_buf(), message: e.to_string() };
+    write_atomically(path, |w| {
+        let mut enc = png::Encoder::new(w, width, height);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+        let mut writer = enc.write_header().map_err(err)?;
+        writer.write_image_data(bytes).map_err(err)?;
+        writer.finish().map_err(err)
+    })
+}

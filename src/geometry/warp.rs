@@ -1,0 +1,227 @@
+//! Sampling warps from `[0,1)²` to directions and points, each with its density.
+use super::Vec2;
+use glam::Vec3A;
+use std::f32::consts::{FRAC_1_PI, TAU};
+
+/// Cosine-weighted hemisphere around +z via the *cosine warp* `sinθ = √u`, `φ = 2πv`
+/// (ALGORITHM.md §2 uses the same map for the guide grid, so a uniform grid cell in `(u, v)`
+/// is a cosine-weighted patch of the hemisphere).
+#[inline]
+#[must_use]
+pub fn cosine_hemisphere(u: Vec2) -> Vec3A {
+    let sin_theta = u.x.sqrt();
+    let cos_theta = (1.0 - u.x).max(0.0).sqrt();
+    let (s, c) = (TAU * u.y).sin_cos();
+    Vec3A::new(c * sin_theta, s * sin_theta, cos_theta)
+}
+
+/// Inverse of [`cosine_hemisphere`]: the `(u, v)` that maps to local direction `w` (`w.z ≥ 0`).
+#[inline]
+#[must_use]
+pub fn cosine_hemisphere_inverse(w: Vec3A) -> Vec2 {
+    let u = (w.x * w.x + w.y * w.y).clamp(0.0, 1.0);
+    let mut phi = w.y.atan2(w.x);
+    if phi < 0.0 {
+        phi += TAU;
+    }
+    Vec2::new(u, (phi / TAU).min(1.0 - f32::EPSILON))
+}
+
+/// Solid-angle density of [`cosine_hemisphere`]: `cosθ/π` above the surface, 0 below.
+#[inline]
+#[must_use]
+pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
+    cos_theta.max(0.0) * FRAC_1_PI
+}
+
+/// Uniform point on a triangle as barycentrics `(b0, b1, b2)`; density `1/area`.
+#[inline]
+#[must_use]
+pub fn uniform_triangle(u: Vec2) -> [f32; 3] {
+    let su = u.x.sqrt();
+    let b0 = 1.0 - su;
+    let b1 = u.y * su;
+    [b0, b1, 1.0 - b0 - b1]
+}
+
+/// A discrete distribution over `n` items by weight, sampled by inverting its CDF.
+#[derive(Clone, Debug, Default)]
+pub struct Discrete {
+    cdf: Vec<f32>,
+    pmf: Vec<f32>,
+    total: f64,
+}
+
+impl Discrete {
+    /// Builds from non-negative weights; `None` when they sum to zero (or any is not finite).
+    #[must_use]
+    pub fn new(weights: &[f32]) -> Option<Self> {
+        if weights.iter().any(|w| !w.is_finite() || *w < 0.0) {
+            return None;
+        }
+        let total: f64 = weights.iter().map(|&w| w as f64).sum();
+        if total <= 0.0 {
+            return None;
+        }
+        let mut acc = 0.0f64;
+        let mut cdf = Vec::with_capacity(weights.len());
+        for &w in weights {
+            acc += w as f64;
+            cdf.push((acc / total) as f32);
+        }
+        // The last entry must be exactly one so that every u < 1 finds a bucket.
+        *cdf.last_mut().unwrap() = 1.0;
+        let pmf = weights.iter().map(|&w| (w as f64 / total) as f32).collect();
+        Some(Self { cdf, pmf, total })
+    }
+
+    /// Picks an item with probability ∝ its weight; returns the item and its probability.
+    #[inline]
+    #[must_use]
+    pub fn sample(&self, u: f32) -> (usize, f32) {
+        let i = self.cdf.partition_point(|&c| c <= u).min(self.cdf.len() - 1);
+        // Zero-weight items are never picked: skip any bucket of zero width.
+        (i, self.pmf[i])
+    }
+
+    #[inline]
+    #[must_use]
+    pub fn pmf(&self, i: usize) -> f32 {
+        self.pmf[i]
+    }
+
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.pmf.len()
+    }
+
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.pmf.is_empty()
+    }
+
+    #[must_use]
+    pub fn total(&self) -> f64 {
+        self.total
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampler::SampleStream;
+    use crate::stats::chi_square_critical;
+    use std::f64::consts::PI;
+
+    /// Midpoint rule over the sphere in (cosθ, φ): ∫ pdf dω = 1 for the cosine warp.
+    #[test]
+    fn cosine_pdf_integrates_to_one() {
+        let (n_mu, n_phi) = (2000, 64);
+        let mut sum = 0.0f64;
+        for i in 0..n_mu {
+            let mu = -1.0 + (i as f64 + 0.5) * 2.0 / n_mu as f64;
+            sum += cosine_hemisphere_pdf(mu as f32) as f64 * (2.0 / n_mu as f64) * 2.0 * PI;
+        }
+        let _ = n_phi;
+        assert!((sum - 1.0).abs() < 1e-4, "integral {sum}");
+    }
+
+    /// Histogram over (cosθ, φ) cells against the pdf integrated over each cell.
+    #[test]
+    fn cosine_samples_follow_pdf_chi_square() {
+        let (n_mu, n_phi, n) = (10usize, 12usize, 200_000usize);
+        let mut hist = vec![0f64; n_mu * n_phi];
+        let mut rng = SampleStream::new(7, 0, 0);
+        for _ in 0..n {
+            let w = cosine_hemisphere(rng.next_2d());
+            assert!(w.z >= 0.0 && (w.length() - 1.0).abs() < 1e-5);
+            let i = ((w.z as f64 * n_mu as f64) as usize).min(n_mu - 1);
+            let mut phi = (w.y as f64).atan2(w.x as f64);
+            if phi < 0.0 {
+                phi += 2.0 * PI;
+            }
+            let j = ((phi / (2.0 * PI) * n_phi as f64) as usize).min(n_phi - 1);
+            hist[i * n_phi + j] += 1.0;
+        }
+        // Cell i spans cosθ ∈ [i/n_mu, (i+1)/n_mu]: ∫ cosθ/π dω = (c1² − c0²)/2 / n_phi.
+        let mut chi2 = 0.0;
+        for i in 0..n_mu {
+            let (c0, c1) = (i as f64 / n_mu as f64, (i + 1) as f64 / n_mu as f64);
+            let p = (c1 * c1 - c0 * c0) / n_phi as f64;
+            for j in 0..n_phi {
+                let e = p * n as f64;
+                chi2 += (hist[i * n_phi + j] - e).powi(2) / e;
+            }
+        }
+        let crit = chi_square_critical(n_mu * n_phi - 1, 1e-4);
+        assert!(chi2 < crit, "chi2 {chi2} >= {crit}");
+    }
+
+    #[test]
+    fn cosine_inverse_round_trips() {
+        let mut rng = SampleStream::new(3, 1, 2);
+        for _ in 0..10_000 {
+            let u = rng.next_2d();
+            let back = cosine_hemisphere_inverse(cosine_hemisphere(u));
+            assert!((back - u).abs().max_element() < 1e-3, "{u} -> {back}");
+        }
+    }
+
+    /// Barycentric samples: uniform over the triangle, checked on a grid of (b1, b2) cells whose
+    /// expected mass is the cell's area inside the triangle (also integrates the pdf to one).
+    #[test]
+    fn triangle_samples_uniform_chi_square() {
+        let (g, n) = (8usize, 200_000usize);
+        let mut hist = vec![0f64; g * g];
+        let mut rng = SampleStream::new(11, 0, 0);
+        for _ in 0..n {
+            let b = uniform_triangle(rng.next_2d());
+            assert!(b.iter().all(|&x| (-1e-6..=1.0 + 1e-6).contains(&x)));
+            assert!((b[0] + b[1] + b[2] - 1.0).abs() < 1e-5);
+            let i = ((b[1] * g as f32) as usize).min(g - 1);
+            let j = ((b[2] * g as f32) as usize).min(g - 1);
+            hist[i * g + j] += 1.0;
+        }
+        // Area of cell ∩ {b1 + b2 ≤ 1}, by a fine midpoint rule, divided by the triangle's 1/2.
+        let fine = 64;
+        let mut total_p = 0.0;
+        let mut chi2 = 0.0;
+        let mut dof = 0;
+        for i in 0..g {
+            for j in 0..g {
+                let mut inside = 0;
+                for a in 0..fine {
+                    for b in 0..fine {
+                        let x = (i as f64 + (a as f64 + 0.5) / fine as f64) / g as f64;
+                        let y = (j as f64 + (b as f64 + 0.5) / fine as f64) / g as f64;
+                        inside += (x + y <= 1.0) as usize;
+                    }
+                }
+                let p = inside as f64 / (fine * fine) as f64 / (g * g) as f64 / 0.5;
+                total_p += p;
+                let e = p * n as f64;
+                if e > 5.0 {
+                    chi2 += (hist[i * g + j] - e).powi(2) / e;
+                    dof += 1;
+                } else {
+                    assert!(hist[i * g + j] <= 3.0 * e + 10.0);
+                }
+            }
+        }
+        assert!((total_p - 1.0).abs() < 1e-3, "pdf integrates to {total_p}");
+        let crit = chi_square_critical(dof - 1, 1e-4);
+        assert!(chi2 < crit, "chi2 {chi2} >= {crit}");
+    }
+
+    #[test]
+    fn discrete_picks_by_weight() {
+        let d = Discrete::new(&[1.0, 0.0, 3.0]).unwrap();
+        assert_eq!(d.sample(0.0).0, 0);
+        assert_eq!(d.sample(0.2499).0, 0);
+        assert_eq!(d.sample(0.25).0, 2);
+        assert_eq!(d.sample(0.999_999).0, 2);
+        assert!((d.pmf(2) - 0.75).abs() < 1e-7);
+        assert!(Discrete::new(&[0.0, 0.0]).is_none());
+        assert!(Discrete::new(&[f32::NAN]).is_none());
+    }
+}

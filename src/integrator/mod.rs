@@ -1,0 +1,84 @@
+//! Integrators behind one trait, generic over the backend. An integrator picks its own film
+//! point inside the pixel (ZVIDPT importance-samples subpixels) and may keep per-pixel state
+//! built once before the pixel's first sample, and may run a pre-pass (the photon map).
+mod path;
+
+pub use path::PathTracer;
+
+use crate::accel::Accel;
+use crate::geometry::{Ray, UVec2, Vec3A, offset_ray_origin};
+use crate::sampler::SampleStream;
+use crate::scene::{Scene, SurfaceInteraction};
+
+/// What an integrator sees while rendering.
+pub struct RenderContext<'a, A: Accel> {
+    pub scene: &'a Scene,
+    pub accel: &'a A,
+}
+
+/// Per-thread tallies, summed per tile: no shared counters in the sample loop.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Counters {
+    pub rays: u64,
+}
+
+pub trait Integrator: Sync {
+    /// State kept per pixel across passes (`()` when there is none).
+    type PixelState: Send + Sync;
+
+    fn name(&self) -> &'static str;
+
+    /// Set-up for one pixel, once, before its first sample.
+    fn setup_pixel<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        pixel: UVec2,
+        seed: u64,
+        counters: &mut Counters,
+    ) -> Self::PixelState;
+
+    /// One sample of `pixel`: an unbiased estimate of the pixel's mean radiance.
+    fn sample<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        pixel: UVec2,
+        state: &Self::PixelState,
+        rng: &mut SampleStream,
+        counters: &mut Counters,
+    ) -> Vec3A;
+}
+
+/// One next-event-estimation sample of direct light at `si` (ALGORITHM.md §3, `L̂1`): an
+/// emitter triangle by power, a uniform point on it, one shadow ray. Always draws three
+/// dimensions so that the stream stays aligned whatever happens.
+#[inline]
+pub fn direct_light<A: Accel>(
+    ctx: &RenderContext<A>,
+    si: &SurfaceInteraction,
+    rng: &mut SampleStream,
+    counters: &mut Counters,
+) -> Vec3A {
+    let u_pick = rng.next_f32();
+    let u_point = rng.next_2d();
+    let Some(light) = ctx.scene.sample_emitter(u_pick, u_point) else {
+        return Vec3A::ZERO;
+    };
+    let to_light = light.p - si.p;
+    let dist2 = to_light.length_squared();
+    let wi = to_light / dist2.sqrt();
+    let cos_x = si.n.dot(wi);
+    let cos_y = -light.ng.dot(wi);
+    // Emitters are one-sided and surfaces reflect only on the side they are seen from.
+    if cos_x <= 0.0 || cos_y <= 0.0 || !(dist2 > 0.0) {
+        return Vec3A::ZERO;
+    }
+    let origin = offset_ray_origin(si.p, si.p_err, si.ng, wi);
+    let target = offset_ray_origin(light.p, light.p_err, light.ng, -wi);
+    let span = target - origin;
+    let len = span.length();
+    counters.rays += 1;
+    if ctx.accel.occluded(&Ray::new(origin, span / len), len * (1.0 - 1e-4)) {
+        return Vec3A::ZERO;
+    }
+    si.material.brdf() * light.emission * (cos_x * cos_y / (dist2 * light.pdf_area))
+}

@@ -1,0 +1,84 @@
+//! The paper's "ordinary stochastic ray tracing" (ALGORITHM.md §5): uniform pixel sampling,
+//! cosine sampling, next event estimation, Russian roulette by albedo after a few bounces.
+//! Emission seen directly by the camera is added once; afterwards light is collected only by
+//! NEE, so nothing is counted twice.
+use super::{Counters, Integrator, RenderContext, direct_light};
+use crate::accel::Accel;
+use crate::geometry::{Frame, UVec2, Vec3A, warp};
+use crate::sampler::SampleStream;
+
+#[derive(Clone, Debug)]
+pub struct PathTracer {
+    /// Bounces before Russian roulette starts.
+    pub rr_depth: u32,
+}
+
+impl Default for PathTracer {
+    fn default() -> Self {
+        Self { rr_depth: 3 }
+    }
+}
+
+/// Survival probability for Russian roulette: the albedo's largest channel, capped so that a
+/// white (ρ = 1) closed scene still terminates. Any cap keeps the estimator unbiased.
+#[inline]
+#[must_use]
+pub fn survival_probability(albedo: Vec3A) -> f32 {
+    albedo.max_element().min(0.95)
+}
+
+impl Integrator for PathTracer {
+    type PixelState = ();
+
+    fn name(&self) -> &'static str {
+        "path"
+    }
+
+    fn setup_pixel<A: Accel>(&self, _: &RenderContext<A>, _: UVec2, _: u64, _: &mut Counters) {}
+
+    #[inline]
+    fn sample<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        pixel: UVec2,
+        _: &(),
+        rng: &mut SampleStream,
+        counters: &mut Counters,
+    ) -> Vec3A {
+        let film = pixel.as_vec2() + rng.next_2d();
+        let ray = ctx.scene.camera.ray(film);
+        counters.rays += 1;
+        let Some(hit) = ctx.accel.intersect(&ray) else {
+            return Vec3A::ZERO;
+        };
+        let mut si = ctx.scene.interaction(&ray, &hit);
+        let mut radiance = si.emitted();
+        let mut throughput = Vec3A::ONE;
+        let mut bounce = 0;
+        loop {
+            let albedo = si.material.diffuse;
+            if albedo == Vec3A::ZERO {
+                break;
+            }
+            radiance += throughput * direct_light(ctx, &si, rng, counters);
+            if bounce >= self.rr_depth {
+                let q = survival_probability(albedo);
+                if rng.next_f32() >= q {
+                    break;
+                }
+                throughput /= q;
+            }
+            // Cosine sampling of a Lambertian BRDF: f·cosθ/pdf = ρ.
+            let wi = Frame::from_normal(si.n).to_world(warp::cosine_hemisphere(rng.next_2d()));
+            throughput *= albedo;
+            let ray = si.spawn_ray(wi);
+            counters.rays += 1;
+            let Some(hit) = ctx.accel.intersect(&ray) else {
+                break;
+            };
+            si = ctx.scene.interaction(&ray, &hit);
+            bounce += 1;
+        }
+        radiance
+    }
+}

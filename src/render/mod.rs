@@ -1,0 +1,232 @@
+//! The tiled scheduler: rayon over image tiles, whole passes of samples, a sample or time
+//! budget, and a progress bar. Each tile owns its accumulators and per-pixel state, so the
+//! sample loop takes no lock and allocates nothing.
+use crate::accel::Accel;
+use crate::film::Image;
+use crate::geometry::{UVec2, Vec3A};
+use crate::integrator::{Counters, Integrator, RenderContext};
+use crate::sampler::SampleStream;
+use crate::scene::Scene;
+use crate::{Error, Result};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use rayon::prelude::*;
+use std::io::IsTerminal;
+use std::time::Instant;
+
+/// How long and how to render.
+#[derive(Clone, Debug)]
+pub struct RenderSettings {
+    /// Samples per pixel; with `time_limit` too, whichever is reached first stops the render.
+    pub spp: Option<u32>,
+    /// Seconds; the render stops after the first whole pass that ends past it.
+    pub time_limit: Option<f64>,
+    pub seed: u64,
+    /// Worker threads (`None`: one per core).
+    pub threads: Option<usize>,
+    /// Tile side in pixels.
+    pub tile_size: u32,
+    /// Show a progress bar on stderr (only when it is a terminal).
+    pub progress: bool,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        Self { spp: Some(16), time_limit: None, seed: 0, threads: None, tile_size: 32, progress: false }
+    }
+}
+
+/// What a render measured.
+#[derive(Clone, Copy, Debug)]
+pub struct RenderStats {
+    pub spp: u32,
+    /// Wall-clock seconds of the sampling passes (pixel set-up included).
+    pub seconds: f64,
+    pub samples: u64,
+    pub rays: u64,
+    pub threads: usize,
+}
+
+impl RenderStats {
+    #[must_use]
+    pub fn samples_per_second(&self) -> f64 {
+        self.samples as f64 / self.seconds.max(1e-9)
+    }
+
+    #[must_use]
+    pub fn rays_per_second(&self) -> f64 {
+        self.rays as f64 / self.seconds.max(1e-9)
+    }
+}
+
+struct Tile<S> {
+    origin: UVec2,
+    size: UVec2,
+    sum: Vec<[f64; 3]>,
+    sum_sq: Vec<[f64; 3]>,
+    state: Vec<S>,
+    counters: Counters,
+}
+
+impl<S: Send + Sync> Tile<S> {
+    fn pixels(&self) -> impl Iterator<Item = (usize, UVec2)> + '_ {
+        (0..self.size.y).flat_map(move |y| {
+            (0..self.size.x).map(move |x| ((y * self.size.x + x) as usize, self.origin + UVec2::new(x, y)))
+        })
+    }
+
+    fn run_pass<A: Accel, I: Integrator<PixelState = S>>(
+        &mut self,
+        ctx: &RenderContext<A>,
+        integrator: &I,
+        seed: u64,
+        width: u32,
+        first: u32,
+        count: u32,
+    ) {
+        let mut counters = self.counters;
+        for y in 0..self.size.y {
+            for x in 0..self.size.x {
+                let i = (y * self.size.x + x) as usize;
+                let pixel = self.origin + UVec2::new(x, y);
+                let index = pixel.y * width + pixel.x;
+                let (mut sum, mut sum_sq) = (self.sum[i], self.sum_sq[i]);
+                for s in first..first + count {
+                    let mut rng = SampleStream::new(seed, index, s);
+                    let v = integrator.sample(ctx, pixel, &self.state[i], &mut rng, &mut counters);
+                    debug_assert!(v.is_finite() && v.min_element() >= 0.0, "sample {v} at {pixel}");
+                    let v = if v.is_finite() { v } else { Vec3A::ZERO };
+                    for c in 0..3 {
+                        let x = v[c] as f64;
+                        sum[c] += x;
+                        sum_sq[c] += x * x;
+                    }
+                }
+                self.sum[i] = sum;
+                self.sum_sq[i] = sum_sq;
+            }
+        }
+        self.counters = counters;
+    }
+}
+
+/// Renders `scene` with `integrator` over `accel`.
+pub fn render<A: Accel, I: Integrator>(
+    scene: &Scene,
+    accel: &A,
+    integrator: &I,
+    settings: &RenderSettings,
+) -> Result<(Image, RenderStats)> {
+    if settings.spp == Some(0) {
+        return Err(Error::InvalidOption("spp must be at least 1".into()));
+    }
+    if settings.spp.is_none() && settings.time_limit.is_none() {
+        return Err(Error::InvalidOption("give a sample count (--spp) or a time budget (--time)".into()));
+    }
+    if let Some(t) = settings.time_limit
+        && !(t.is_finite() && t > 0.0)
+    {
+        return Err(Error::InvalidOption(format!("time budget must be a positive number of seconds, got {t}")));
+    }
+    if settings.tile_size == 0 {
+        return Err(Error::InvalidOption("tile size must be at least 1".into()));
+    }
+    let mut builder = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = settings.threads {
+        if n == 0 {
+            return Err(Error::InvalidOption("threads must be at least 1".into()));
+        }
+        builder = builder.num_threads(n);
+    }
+    let pool = builder.build().map_err(|e| Error::InvalidOption(format!("cannot start worker threads: {e}")))?;
+    let threads = pool.current_num_threads();
+    pool.install(|| render_in_pool(scene, accel, integrator, settings, threads))
+}
+
+fn render_in_pool<A: Accel, I: Integrator>(
+    scene: &Scene,
+    accel: &A,
+    integrator: &I,
+    settings: &RenderSettings,
+    threads: usize,
+) -> Result<(Image, RenderStats)> {
+    let (width, height) = (scene.camera.width, scene.camera.height);
+    let ctx = RenderContext { scene, accel };
+    let ts = settings.tile_size;
+    let mut tiles: Vec<Tile<I::PixelState>> = Vec::new();
+    for ty in (0..height).step_by(ts as usize) {
+        for tx in (0..width).step_by(ts as usize) {
+            let size = UVec2::new(ts.min(width - tx), ts.min(height - ty));
+            let n = (size.x * size.y) as usize;
+            tiles.push(Tile {
+                origin: UVec2::new(tx, ty),
+                size,
+                sum: vec![[0.0; 3]; n],
+                sum_sq: vec![[0.0; 3]; n],
+                state: Vec::new(),
+                counters: Counters::default(),
+            });
+        }
+    }
+    let bar = progress_bar(settings);
+    let start = Instant::now();
+    tiles.par_iter_mut().for_each(|tile| {
+        let mut counters = Counters::default();
+        tile.state =
+            tile.pixels().map(|(_, p)| integrator.setup_pixel(&ctx, p, settings.seed, &mut counters)).collect();
+        tile.counters = counters;
+    });
+    // Whole passes. A pass is one sample per pixel under a time budget (so the budget is
+    // overshot by at most one pass) and a few samples otherwise (fewer, larger tasks).
+    let mut done = 0u32;
+    loop {
+        let elapsed = start.elapsed().as_secs_f64();
+        if settings.spp.is_some_and(|n| done >= n) || (done > 0 && settings.time_limit.is_some_and(|t| elapsed >= t)) {
+            break;
+        }
+        let remaining = settings.spp.map_or(u32::MAX, |n| n - done);
+        let pass = if settings.time_limit.is_some() { 1 } else { remaining.min(4) };
+        tiles.par_iter_mut().for_each(|tile| tile.run_pass(&ctx, integrator, settings.seed, width, done, pass));
+        done += pass;
+        match (settings.spp, settings.time_limit) {
+            (Some(_), None) => bar.set_position(done as u64),
+            (_, Some(t)) => bar.set_position(((start.elapsed().as_secs_f64() / t) * 1000.0).min(1000.0) as u64),
+            _ => {}
+        }
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+
+    let n = done as f64;
+    let mut pixels = vec![[0.0f32; 3]; (width * height) as usize];
+    let mut variance = vec![[0.0f32; 3]; pixels.len()];
+    let mut rays = 0;
+    for tile in &tiles {
+        rays += tile.counters.rays;
+        for (i, p) in tile.pixels() {
+            let j = (p.y * width + p.x) as usize;
+            for c in 0..3 {
+                let mean = tile.sum[i][c] / n;
+                pixels[j][c] = mean as f32;
+                variance[j][c] =
+                    if done > 1 { ((tile.sum_sq[i][c] - n * mean * mean) / (n - 1.0)).max(0.0) as f32 } else { 0.0 };
+            }
+        }
+    }
+    let stats = RenderStats { spp: done, seconds, samples: done as u64 * (width * height) as u64, rays, threads };
+    Ok((Image { width, height, pixels, variance: Some(variance), spp: done }, stats))
+}
+
+fn progress_bar(settings: &RenderSettings) -> ProgressBar {
+    if !settings.progress || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let (len, template) = match (settings.spp, settings.time_limit) {
+        (Some(n), None) => (n as u64, "{spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} spp (eta {eta})"),
+        _ => (1000, "{spinner} [{elapsed_precise}] {wide_bar} time budget {percent}%"),
+    };
+    let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
+    if let Ok(style) = ProgressStyle::with_template(template) {
+        bar.set_style(style);
+    }
+    bar
+}
