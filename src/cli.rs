@@ -63,7 +63,7 @@ pub struct RenderArgs {
     #[arg(long)]
     pub spp: Option<u32>,
     /// Time budget in seconds: render whole passes until it is used up.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub time: Option<f64>,
     /// Light-transport algorithm.
     #[arg(long, value_enum, default_value_t = IntegratorKind::Path)]
@@ -166,12 +166,22 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     if let Some(p) = &png {
         film::check_writable(p)?;
     }
-    let mut scene = Scene::load(locate_scene(&args.scene))?;
-    for w in &scene.warnings {
-        eprintln!("warning: {w}");
+    if let Some(t) = args.time
+        && !(t.is_finite() && t > 0.0)
+    {
+        return Err(Error::InvalidOption(format!("--time must be a positive number of seconds, got {t}")));
     }
+    if args.threads == Some(0) {
+        return Err(Error::InvalidOption("--threads must be at least 1".into()));
+    }
+    args.backend.check_available()?;
+    let mut scene = Scene::load(locate_scene(&args.scene))?;
     if let Some((w, h)) = args.resolution {
         scene.set_resolution(w, h)?;
+    }
+    // Warnings only once every option is known to be valid, so a failed run prints one line.
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
     }
     let settings = RenderSettings {
         spp: args.spp.or(if args.time.is_some() { None } else { Some(64) }),

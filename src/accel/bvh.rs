@@ -67,7 +67,7 @@ impl Accel for BvhAccel {
 
     #[inline]
     fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
-        if !ray.is_valid() || !(t_max > 0.0) {
+        if !ray.is_valid() || t_max.is_nan() || t_max <= 0.0 {
             return false;
         }
         !self.bvh.ray_traverse_miss(Self::bvh_ray(ray, t_max), |r, i| self.triangles[i].intersect(r))

@@ -48,6 +48,18 @@ pub enum BackendKind {
     Auto,
 }
 
+impl BackendKind {
+    /// Fails with a clear message when the backend is not compiled into this build.
+    pub fn check_available(self) -> Result<()> {
+        match self {
+            BackendKind::Bvh | BackendKind::Auto => Ok(()),
+            BackendKind::Embree => Err(crate::Error::Backend(
+                "the embree backend is not compiled in: rebuild with `cargo build --release --features embree`".into(),
+            )),
+        }
+    }
+}
+
 /// Code that runs once a backend is built: the generic entry point below the dispatch.
 pub trait WithAccel {
     type Output;
@@ -59,8 +71,6 @@ pub trait WithAccel {
 pub fn with_backend<J: WithAccel>(kind: BackendKind, scene: &Scene, job: J) -> Result<J::Output> {
     match kind {
         BackendKind::Bvh | BackendKind::Auto => Ok(job.run(&BvhAccel::build(scene))),
-        BackendKind::Embree => Err(crate::Error::Backend(
-            "the embree backend is not compiled in: rebuild with `cargo build --release --features embree`".into(),
-        )),
+        BackendKind::Embree => Err(BackendKind::Embree.check_available().unwrap_err()),
     }
 }

@@ -69,7 +69,7 @@ pub fn direct_light<A: Accel>(
     let cos_x = si.n.dot(wi);
     let cos_y = -light.ng.dot(wi);
     // Emitters are one-sided and surfaces reflect only on the side they are seen from.
-    if cos_x <= 0.0 || cos_y <= 0.0 || !(dist2 > 0.0) {
+    if cos_x <= 0.0 || cos_y <= 0.0 || dist2.is_nan() || dist2 <= 0.0 {
         return Vec3A::ZERO;
     }
     let origin = offset_ray_origin(si.p, si.p_err, si.ng, wi);

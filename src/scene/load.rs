@@ -158,15 +158,9 @@ fn load_obj(
                 let id = match by_name.get(&m.name) {
                     Some(&id) => id,
                     None => {
-                        let ke = m
-                            .unknown_param
-                            .get("Ke")
-                            .map(|s| parse_rgb(s))
-                            .transpose()
-                            .map_err(|_| mesh_err(format!("material `{}`: Ke is not three numbers", m.name)))?;
                         let d = MaterialDescription {
                             diffuse: m.diffuse.unwrap_or([0.0; 3]),
-                            emission: ke.unwrap_or([0.0; 3]),
+                            emission: m.emissive.unwrap_or([0.0; 3]),
                         };
                         let id = materials.len() as u32;
                         materials.push(material_from(obj_path, &m.name, &d)?);
@@ -217,7 +211,7 @@ fn load_obj(
                 t.swap(1, 2);
             }
             let n = (t[1] - t[0]).cross(t[2] - t[0]);
-            if !(n.length_squared() > 0.0) || !n.normalize().is_finite() {
+            if n.length_squared() == 0.0 || !n.normalize().is_finite() {
                 *degenerate += 1;
                 continue;
             }
@@ -226,13 +220,4 @@ fn load_obj(
         }
     }
     Ok(())
-}
-
-fn parse_rgb(s: &str) -> Result<[f32; 3], ()> {
-    let v: Vec<f32> = s.split_whitespace().map(|x| x.parse::<f32>().map_err(|_| ())).collect::<Result<_, _>>()?;
-    match v[..] {
-        [r, g, b] => Ok([r, g, b]),
-        [x] => Ok([x; 3]),
-        _ => Err(()),
-    }
 }

@@ -202,7 +202,6 @@ impl Scene {
     }
 
     /// Emitter triangles (scene prim ids), their areas and their selection probabilities.
-    #[must_use]
     pub fn emitter_triangles(&self) -> impl Iterator<Item = (u32, f32, f32)> + '_ {
         let choice = self.emitters.choice.as_ref();
         self.emitters

@@ -1,0 +1,278 @@
+//! The command line: a smoke test of `render`, `info` and `diff`, and every bad input the
+//! foundation issue lists, each of which must print one `error:` line, exit non-zero and write
+//! no output file.
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn zvidpt(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_zvidpt")).args(args).env_remove("RUST_BACKTRACE").output().expect("binary runs")
+}
+
+/// A fresh scratch folder per test.
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("zvidpt-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn repo(p: &str) -> String {
+    format!("{}/{p}", env!("CARGO_MANIFEST_DIR"))
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+const BOX: &str = "mtllib box.mtl\nusemtl white\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+const MTL: &str = "newmtl white\nKd 0.5 0.5 0.5\nKe 1 1 1\n";
+
+fn camera(w: u32, h: u32) -> String {
+    format!("[camera]\neye = [0.3, 0.3, 2.0]\nlook_at = [0.3, 0.3, 0.0]\nfov_y = 45.0\nwidth = {w}\nheight = {h}\n")
+}
+
+/// Writes a scene folder with `scene.toml` = `toml` and `box.obj` = `obj`.
+fn scene_dir(name: &str, toml: &str, obj: &str) -> PathBuf {
+    let d = scratch(name);
+    std::fs::write(d.join("scene.toml"), toml).unwrap();
+    std::fs::write(d.join("box.obj"), obj).unwrap();
+    std::fs::write(d.join("box.mtl"), MTL).unwrap();
+    d
+}
+
+/// Runs a render that must fail: one `error:` line naming `needle`, exit ≠ 0, no files.
+fn expect_error(dir: &Path, extra: &[&str], needle: &str) {
+    let out_exr = dir.join("out.exr");
+    let mut args = vec!["render", s(dir), "-o", s(&out_exr), "-q"];
+    if !extra.contains(&"--spp") {
+        args.extend(["--spp", "1"]);
+    }
+    args.extend_from_slice(extra);
+    let out = zvidpt(&args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "succeeded: {args:?}");
+    assert!(matches!(out.status.code(), Some(1 | 2)), "exit code for {args:?}: {stderr}");
+    let lines: Vec<&str> = stderr.lines().collect();
+    assert!(lines.len() == 1 && lines[0].starts_with("error: "), "stderr for {args:?}:\n{stderr}");
+    assert!(lines[0].contains(needle), "`{needle}` not in: {}", lines[0]);
+    let folder = if dir.is_dir() { dir } else { dir.parent().unwrap() };
+    let leftovers: Vec<_> = std::fs::read_dir(folder)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".exr") || n.ends_with(".png") || n.ends_with(".tmp"))
+        .collect();
+    assert!(leftovers.is_empty(), "files written: {leftovers:?}");
+}
+
+#[test]
+fn render_info_and_diff_smoke() {
+    let d = scratch("smoke");
+    let (a, b, map) = (d.join("a.exr"), d.join("b.exr"), d.join("err.png"));
+    for (path, seed) in [(&a, "1"), (&b, "2")] {
+        let out = zvidpt(&[
+            "render",
+            &repo("scenes/cornell-paper"),
+            "-o",
+            s(path),
+            "--spp",
+            "4",
+            "--resolution",
+            "64x48",
+            "--seed",
+            seed,
+            "-q",
+        ]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            stdout.contains("64x48, 4 spp") && stdout.contains("samples/s") && stdout.contains("rays/s"),
+            "{stdout}"
+        );
+    }
+    assert!(a.with_extension("png").is_file() && b.with_extension("png").is_file());
+    let info = zvidpt(&["info", s(&a)]);
+    let text = String::from_utf8_lossy(&info.stdout);
+    for key in ["integrator = path", "backend = bvh", "spp = 4", "seed = 1", "seconds = ", "version = "] {
+        assert!(text.contains(key), "{key} missing from info:\n{text}");
+    }
+    let diff = zvidpt(&["diff", s(&a), s(&b), "--error-map", s(&map)]);
+    let text = String::from_utf8_lossy(&diff.stdout);
+    assert!(diff.status.success() && text.starts_with("MSE ") && text.contains("relMSE"), "{text}");
+    assert!(map.is_file());
+    let same = zvidpt(&["diff", s(&a), s(&a)]);
+    assert!(String::from_utf8_lossy(&same.stdout).starts_with("MSE 0.000000e0"));
+    // Time budget: stops after whole passes.
+    let out = zvidpt(&[
+        "render",
+        &repo("scenes/cornell-paper"),
+        "-o",
+        s(&a),
+        "--time",
+        "0.2",
+        "--resolution",
+        "32x24",
+        "--no-png",
+        "-q",
+    ]);
+    assert!(out.status.success() && String::from_utf8_lossy(&out.stdout).contains(" spp, "));
+}
+
+#[test]
+fn png_bytes_identical_across_threads_and_tiles() {
+    let d = scratch("determinism");
+    let mut pngs = Vec::new();
+    for (i, (threads, tile)) in [("1", "32"), ("2", "32"), ("2", "5")].iter().enumerate() {
+        let exr = d.join(format!("r{i}.exr"));
+        let out = zvidpt(&[
+            "render",
+            &repo("scenes/cornell-paper"),
+            "-o",
+            s(&exr),
+            "--spp",
+            "3",
+            "--resolution",
+            "80x60",
+            "--threads",
+            threads,
+            "--tile-size",
+            tile,
+            "-q",
+        ]);
+        assert!(out.status.success());
+        pngs.push(std::fs::read(exr.with_extension("png")).unwrap());
+    }
+    assert!(pngs[0] == pngs[1] && pngs[1] == pngs[2]);
+}
+
+#[test]
+fn missing_and_unreadable_scene() {
+    let d = scratch("missing");
+    expect_error(&d.join("nope"), &[], "nope");
+    // A folder without scene.toml.
+    expect_error(&d, &[], "scene.toml");
+    // Not UTF-8 text.
+    let bin = scratch("binary");
+    std::fs::write(bin.join("scene.toml"), [0xff, 0xfe, 0x00, 0x80]).unwrap();
+    expect_error(&bin, &[], "scene.toml");
+}
+
+#[test]
+fn missing_obj() {
+    let d = scene_dir("missing-obj", &format!("{}[[mesh]]\nobj = \"gone.obj\"\n", camera(8, 8)), BOX);
+    expect_error(&d, &[], "gone.obj");
+}
+
+#[test]
+fn malformed_toml_names_the_line() {
+    let d = scene_dir("malformed", &format!("{}[[mesh]\nobj = \"box.obj\"\n", camera(8, 8)), BOX);
+    expect_error(&d, &[], "line 7");
+}
+
+#[test]
+fn unknown_key_is_named() {
+    let d = scene_dir("unknown", &format!("{}colour = 3\n[[mesh]]\nobj = \"box.obj\"\n", camera(8, 8)), BOX);
+    expect_error(&d, &[], "colour");
+    let d = scene_dir("unknown2", &format!("{}[[mesh]]\nobj = \"box.obj\"\nflip = true\n", camera(8, 8)), BOX);
+    expect_error(&d, &[], "flip");
+}
+
+#[test]
+fn non_finite_vertex() {
+    for (i, bad) in ["nan", "inf", "-inf"].iter().enumerate() {
+        let obj = BOX.replace("v 1 0 0", &format!("v 1 {bad} 0"));
+        let d = scene_dir(&format!("nan{i}"), &format!("{}[[mesh]]\nobj = \"box.obj\"\n", camera(8, 8)), &obj);
+        expect_error(&d, &[], "non-finite");
+    }
+}
+
+#[test]
+fn mesh_index_out_of_range() {
+    let obj = BOX.replace("f 1 2 3", "f 1 2 9");
+    let d = scene_dir("index", &format!("{}[[mesh]]\nobj = \"box.obj\"\n", camera(8, 8)), &obj);
+    expect_error(&d, &[], "box.obj");
+}
+
+#[test]
+fn bad_resolutions() {
+    let mesh = "[[mesh]]\nobj = \"box.obj\"\n";
+    expect_error(&scene_dir("zero-w", &format!("{}{mesh}", camera(0, 8)), BOX), &[], "at least 1");
+    expect_error(&scene_dir("huge", &format!("{}{mesh}", camera(20000, 8)), BOX), &[], "16384");
+    let ok = scene_dir("override", &format!("{}{mesh}", camera(8, 8)), BOX);
+    expect_error(&ok, &["--resolution", "0x10"], "at least 1");
+    expect_error(&ok, &["--resolution", "17000x10"], "16384");
+}
+
+#[test]
+fn zero_spp_and_bad_numbers() {
+    let d = scene_dir("spp", &format!("{}[[mesh]]\nobj = \"box.obj\"\n", camera(8, 8)), BOX);
+    expect_error(&d, &["--spp", "0"], "spp");
+    expect_error(&d, &["--time", "-1"], "time");
+    expect_error(&d, &["--threads", "0"], "threads");
+    expect_error(&d, &["--spp", "many"], "many");
+    expect_error(&d, &["--resolution", "12"], "WIDTHxHEIGHT");
+    expect_error(&d, &["--integrator", "magic"], "magic");
+}
+
+#[test]
+fn unwritable_output() {
+    let d = scene_dir("unwritable", &format!("{}[[mesh]]\nobj = \"box.obj\"\n", camera(8, 8)), BOX);
+    let out = zvidpt(&["render", s(&d), "-o", s(&d.join("no/such/dir/out.exr")), "--spp", "1", "-q"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success()
+            && stderr.lines().count() == 1
+            && stderr.starts_with("error: ")
+            && stderr.contains("no/such/dir"),
+        "{stderr}"
+    );
+    // An output path that is a folder.
+    let out = zvidpt(&["render", s(&d), "-o", s(&d), "--spp", "1", "-q"]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).starts_with("error: "));
+}
+
+#[test]
+fn no_emitter_warns_and_renders_black() {
+    let mtl_dark = "newmtl white\nKd 0.5 0.5 0.5\n";
+    let d = scene_dir("dark", &format!("{}[[mesh]]\nobj = \"box.obj\"\n", camera(8, 8)), BOX);
+    std::fs::write(d.join("box.mtl"), mtl_dark).unwrap();
+    let exr = d.join("out.exr");
+    let out = zvidpt(&["render", s(&d), "-o", s(&exr), "--spp", "2", "-q"]);
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("warning: the scene has no emitter"));
+    let info = String::from_utf8_lossy(&zvidpt(&["info", s(&exr)]).stdout).into_owned();
+    assert!(info.contains("mean RGB (0.00000, 0.00000, 0.00000)"), "{info}");
+}
+
+#[test]
+fn degenerate_triangles_are_counted() {
+    let obj = format!("{BOX}v 2 2 2\nf 4 4 4\nf 1 2 2\n");
+    let d = scene_dir("degenerate", &format!("{}[[mesh]]\nobj = \"box.obj\"\n", camera(8, 8)), &obj);
+    let out = zvidpt(&["render", s(&d), "-o", s(&d.join("o.exr")), "--spp", "1", "-q"]);
+    assert!(out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("skipped 2 degenerate"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn unknown_material_and_backend_not_built() {
+    let d = scene_dir("material", &format!("{}[[mesh]]\nobj = \"box.obj\"\nmaterial = \"gold\"\n", camera(8, 8)), BOX);
+    expect_error(&d, &[], "gold");
+    if !cfg!(feature = "embree") {
+        let ok = scene_dir("backend", &format!("{}[[mesh]]\nobj = \"box.obj\"\n", camera(8, 8)), BOX);
+        expect_error(&ok, &["--backend", "embree"], "embree");
+    }
+}
+
+#[test]
+fn diff_errors() {
+    let d = scratch("diff");
+    let out = zvidpt(&["diff", s(&d.join("a.exr")), s(&d.join("b.exr"))]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).starts_with("error: "));
+    std::fs::write(d.join("junk.exr"), b"not an exr").unwrap();
+    let out = zvidpt(&["diff", s(&d.join("junk.exr")), s(&d.join("junk.exr"))]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.starts_with("error: ") && stderr.lines().count() == 1, "{stderr}");
+}
