@@ -1,7 +1,8 @@
 //! The command line: `zvidpt render`, `zvidpt diff`.
 use crate::accel::{Accel, BackendKind, WithAccel, with_backend};
 use crate::film::{self, Image, Metadata};
-use crate::integrator::{Integrator, PathTracer};
+use crate::integrator::{Estimator, GuideSettings, Jensen, MAX_SUBPIXELS, PathTracer, Zvidpt};
+use crate::photon::{GridShape, GuidePhotons, MAX_GUIDE_CELLS};
 use crate::render::{RenderSettings, RenderStats, render};
 use crate::scene::Scene;
 use crate::{Error, Result};
@@ -40,6 +41,19 @@ pub struct InfoArgs {
 pub enum IntegratorKind {
     /// Path tracing with next event estimation (the paper's baseline).
     Path,
+    /// Jensen 1995: path tracing with directions guided by the photon map.
+    Jensen,
+    /// ZVIDPT, terminal estimator (zero variance with exact photon estimates).
+    ZvidptTerminal,
+    /// ZVIDPT, collision estimator.
+    ZvidptCollision,
+}
+
+/// On or off.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Switch {
+    On,
+    Off,
 }
 
 #[derive(Debug, Args)]
@@ -68,6 +82,26 @@ pub struct RenderArgs {
     /// Light-transport algorithm.
     #[arg(long, value_enum, default_value_t = IntegratorKind::Path)]
     pub integrator: IntegratorKind,
+    /// Photons stored by the photon pass (jensen, zvidpt-*; the paper used 6891).
+    #[arg(long, default_value_t = 6891)]
+    pub photons: usize,
+    /// Photons per radiance estimate and guide grid (the paper's N).
+    #[arg(long, default_value_t = 50)]
+    pub knn: usize,
+    /// Direction guide grid GL as ROWSxCOLS over the cosine-warped hemisphere (rows split θ).
+    #[arg(long, default_value = "4x16", value_parser = parse_guide_grid)]
+    pub guide_grid: GridShape,
+    /// ZVIDPT's subpixel grid Gp as ROWSxCOLS (at most 32 subpixels).
+    #[arg(long, default_value = "2x4", value_parser = parse_pixel_grid)]
+    pub pixel_grid: GridShape,
+    /// Photons that shape ZVIDPT's guide grid: indirect (bounced at least once) or all (the
+    /// paper's choice). Jensen always uses all.
+    #[arg(long, value_enum, default_value_t = GuidePhotons::Indirect)]
+    pub guide: GuidePhotons,
+    /// Precompute guide records after the photon pass (on) or query the photon map at every
+    /// walk vertex (off, the paper's way; slower).
+    #[arg(long, value_enum, default_value_t = Switch::On)]
+    pub guide_cache: Switch,
     /// Ray-tracing backend (auto: Embree when compiled in, otherwise bvh).
     #[arg(long, value_enum, default_value_t = BackendKind::Auto)]
     pub backend: BackendKind,
@@ -97,6 +131,14 @@ pub struct DiffArgs {
     /// Write a false-colour PNG of per-pixel relative squared error.
     #[arg(long)]
     pub error_map: Option<PathBuf>,
+}
+
+fn parse_guide_grid(s: &str) -> std::result::Result<GridShape, String> {
+    GridShape::parse(s, MAX_GUIDE_CELLS)
+}
+
+fn parse_pixel_grid(s: &str) -> std::result::Result<GridShape, String> {
+    GridShape::parse(s, MAX_SUBPIXELS)
 }
 
 fn parse_resolution(s: &str) -> std::result::Result<(u32, u32), String> {
@@ -129,27 +171,32 @@ fn locate_scene(path: &Path) -> PathBuf {
 /// Renders with whichever backend the user chose: the one dynamic choice, at the top.
 struct RenderJob<'a> {
     scene: &'a Scene,
-    integrator: IntegratorKind,
+    args: &'a RenderArgs,
     settings: &'a RenderSettings,
 }
 
 impl WithAccel for RenderJob<'_> {
     type Output = Result<(Image, RenderStats, &'static str)>;
     fn run<A: Accel>(self, accel: &A) -> Self::Output {
-        let (image, stats) = match self.integrator {
-            IntegratorKind::Path => run_integrator(self.scene, accel, &PathTracer::default(), self.settings)?,
+        let a = self.args;
+        let guide = GuideSettings {
+            photons: a.photons,
+            knn: a.knn,
+            grid: a.guide_grid,
+            which: a.guide,
+            cache: a.guide_cache == Switch::On,
+            ..GuideSettings::default()
+        };
+        let zvidpt = |estimator| Zvidpt { pixel_grid: a.pixel_grid, ..Zvidpt::new(estimator, guide.clone()) };
+        let (scene, s) = (self.scene, self.settings);
+        let (image, stats) = match a.integrator {
+            IntegratorKind::Path => render(scene, accel, &mut PathTracer::default(), s)?,
+            IntegratorKind::Jensen => render(scene, accel, &mut Jensen::new(guide.clone()), s)?,
+            IntegratorKind::ZvidptTerminal => render(scene, accel, &mut zvidpt(Estimator::Terminal), s)?,
+            IntegratorKind::ZvidptCollision => render(scene, accel, &mut zvidpt(Estimator::Collision), s)?,
         };
         Ok((image, stats, accel.name()))
     }
-}
-
-fn run_integrator<A: Accel, I: Integrator>(
-    scene: &Scene,
-    accel: &A,
-    integrator: &I,
-    settings: &RenderSettings,
-) -> Result<(Image, RenderStats)> {
-    render(scene, accel, integrator, settings)
 }
 
 /// Renders as the command line says; returns what it measured.
@@ -174,6 +221,9 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     if args.threads == Some(0) {
         return Err(Error::InvalidOption("--threads must be at least 1".into()));
     }
+    if args.knn == 0 {
+        return Err(Error::InvalidOption("--knn must be at least 1".into()));
+    }
     args.backend.check_available()?;
     let mut scene = Scene::load(locate_scene(&args.scene))?;
     if let Some((w, h)) = args.resolution {
@@ -193,7 +243,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     };
     let integrator = args.integrator;
     let (image, stats, backend) =
-        with_backend(args.backend, &scene, RenderJob { scene: &scene, integrator, settings: &settings })??;
+        with_backend(args.backend, &scene, RenderJob { scene: &scene, args, settings: &settings })??;
 
     let mut meta = Metadata::default();
     meta.push("scene", scene.path.display());
@@ -201,6 +251,20 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     meta.push("backend", backend);
     meta.push("seed", args.seed);
     meta.push("seconds", format!("{:.3}", stats.seconds));
+    meta.push("prepass_seconds", format!("{:.3}", stats.prepass_seconds));
+    if let Some(p) = &stats.prepass {
+        meta.push("prepass", p);
+        if integrator != IntegratorKind::Path {
+            meta.push("photons", args.photons);
+            meta.push("knn", args.knn);
+            meta.push("guide_grid", format!("{}x{}", args.guide_grid.rows, args.guide_grid.cols));
+            meta.push("guide_cache", if args.guide_cache == Switch::On { "on" } else { "off" });
+        }
+        if matches!(integrator, IntegratorKind::ZvidptTerminal | IntegratorKind::ZvidptCollision) {
+            meta.push("pixel_grid", format!("{}x{}", args.pixel_grid.rows, args.pixel_grid.cols));
+            meta.push("guide", if args.guide == GuidePhotons::All { "all" } else { "indirect" });
+        }
+    }
     meta.push("threads", stats.threads);
     meta.push("rays", stats.rays);
     meta.push("version", crate::VERSION);
@@ -208,13 +272,17 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     if let Some(p) = &png {
         film::write_png(p, &image, args.exposure)?;
     }
+    if let Some(p) = &stats.prepass {
+        println!("pre-pass: {p}");
+    }
     println!(
-        "{} {}x{}, {} spp, {:.2} s, {:.2} M samples/s, {:.2} M rays/s ({}, {}, {} threads) -> {}{}",
+        "{} {}x{}, {} spp, {:.2} s{}, {:.2} M samples/s, {:.2} M rays/s ({}, {}, {} threads) -> {}{}",
         scene.name,
         image.width,
         image.height,
         stats.spp,
         stats.seconds,
+        if stats.prepass.is_some() { format!(" (pre-pass {:.2} s)", stats.prepass_seconds) } else { String::new() },
         stats.samples_per_second() / 1e6,
         stats.rays_per_second() / 1e6,
         meta.get("integrator").unwrap_or("?"),

@@ -14,6 +14,7 @@ pub mod error;
 pub mod film;
 pub mod geometry;
 pub mod integrator;
+pub mod photon;
 pub mod render;
 pub mod sampler;
 pub mod scene;

@@ -19,8 +19,8 @@ use zvidpt::stats::family_z_bound;
 #[test]
 fn cornell_paper_consistent_with_longer_render() {
     let scene = scene_at("cornell-paper", 64, 48);
-    let reference = render_bvh(&scene, &PathTracer::default(), 8192, 2);
-    let short = render_bvh(&scene, &PathTracer::default(), 1024, 1);
+    let reference = render_bvh(&scene, &mut PathTracer::default(), 8192, 2);
+    let short = render_bvh(&scene, &mut PathTracer::default(), 1024, 1);
     let (z, n) = max_block_z(&short, &reference, 16);
     let bound = family_z_bound(n, 1e-3);
     let global_bound = family_z_bound(3, 1e-3);
@@ -32,7 +32,7 @@ fn cornell_paper_consistent_with_longer_render() {
     assert!(zg < global_bound, "image-wide |z| {zg} >= {global_bound}");
 
     // The same test sees a 20% bias (a deliberately broken estimator).
-    let biased = render_bvh(&scene, &Scaled(PathTracer::default(), 0.8), 1024, 1);
+    let biased = render_bvh(&scene, &mut Scaled(PathTracer::default(), 0.8), 1024, 1);
     let (zb, _) = max_block_z(&biased, &reference, 16);
     let zbg = max_image_z(&biased, &reference);
     eprintln!("with a 20% bias: blocks max |z| {zb:.2}, image {zbg:.2}");

@@ -13,7 +13,7 @@ fn identical_across_threads_and_tiles() {
     let run = |threads, tile_size| {
         let s =
             RenderSettings { spp: Some(6), seed: 42, threads: Some(threads), tile_size, ..RenderSettings::default() };
-        render(&scene, &accel, &PathTracer::default(), &s).unwrap().0
+        render(&scene, &accel, &mut PathTracer::default(), &s).unwrap().0
     };
     let reference = run(1, 32);
     for (threads, tile) in [(2, 32), (2, 7), (3, 16), (1, 100)] {
@@ -24,6 +24,6 @@ fn identical_across_threads_and_tiles() {
         assert!(bits(&img) == bits(&reference), "{threads} threads, tile {tile} differ");
     }
     let other_seed =
-        render(&scene, &accel, &PathTracer::default(), &RenderSettings { seed: 43, ..settings(6, 0) }).unwrap().0;
+        render(&scene, &accel, &mut PathTracer::default(), &RenderSettings { seed: 43, ..settings(6, 0) }).unwrap().0;
     assert_ne!(other_seed.pixels, reference.pixels);
 }

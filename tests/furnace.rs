@@ -11,7 +11,7 @@ const Z_BOUND: f64 = 4.0;
 #[test]
 fn path_tracer_matches_analytic_furnace() {
     let scene = scene_at("furnace", 32, 32);
-    let img = render_bvh(&scene, &PathTracer::default(), 64, 1);
+    let img = render_bvh(&scene, &mut PathTracer::default(), 64, 1);
     let (mean, se) = image_mean_and_se(&img);
     let z = (mean - 1.0) / se;
     eprintln!("furnace path: mean {mean:.6}, s.e. {se:.2e}, z {z:.2}");
@@ -31,7 +31,7 @@ fn path_tracer_matches_analytic_furnace() {
 #[test]
 fn furnace_test_detects_a_two_percent_bias() {
     let scene = scene_at("furnace", 32, 32);
-    let img = render_bvh(&scene, &Scaled(PathTracer::default(), 0.98), 64, 1);
+    let img = render_bvh(&scene, &mut Scaled(PathTracer::default(), 0.98), 64, 1);
     let (mean, se) = image_mean_and_se(&img);
     assert!(((mean - 1.0) / se).abs() >= Z_BOUND, "a 2% bias went unnoticed: mean {mean} s.e. {se}");
 }

@@ -1,9 +1,15 @@
 //! Integrators behind one trait, generic over the backend. An integrator picks its own film
 //! point inside the pixel (ZVIDPT importance-samples subpixels) and may keep per-pixel state
 //! built once before the pixel's first sample, and may run a pre-pass (the photon map).
-mod path;
+pub mod guided;
+mod jensen;
+pub mod path;
+mod zvidpt;
 
+pub use guided::GuideSettings;
+pub use jensen::Jensen;
 pub use path::PathTracer;
+pub use zvidpt::{Estimator, MAX_SUBPIXELS, Zvidpt};
 
 use crate::accel::Accel;
 use crate::geometry::{Ray, UVec2, Vec3A, offset_ray_origin};
@@ -22,11 +28,17 @@ pub struct Counters {
     pub rays: u64,
 }
 
-pub trait Integrator: Sync {
+pub trait Integrator: Sync + Send {
     /// State kept per pixel across passes (`()` when there is none).
     type PixelState: Send + Sync;
 
     fn name(&self) -> &'static str;
+
+    /// The pre-pass (the photon map), run once before any pixel; returns a line describing
+    /// what it built, if anything.
+    fn prepare<A: Accel>(&mut self, _ctx: &RenderContext<A>, _seed: u64) -> crate::Result<Option<String>> {
+        Ok(None)
+    }
 
     /// Set-up for one pixel, once, before its first sample.
     fn setup_pixel<A: Accel>(

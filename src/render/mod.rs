@@ -36,25 +36,31 @@ impl Default for RenderSettings {
 }
 
 /// What a render measured.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct RenderStats {
     pub spp: u32,
-    /// Wall-clock seconds of the sampling passes (pixel set-up included).
+    /// Wall-clock seconds of the whole render: pre-pass, pixel set-up and sampling.
     pub seconds: f64,
+    /// Seconds of the pre-pass alone (the photon map), included in `seconds`.
+    pub prepass_seconds: f64,
     pub samples: u64,
     pub rays: u64,
     pub threads: usize,
+    /// What the pre-pass built, if the integrator has one.
+    pub prepass: Option<String>,
 }
 
 impl RenderStats {
     #[must_use]
+    /// Samples per second of sampling (pre-pass excluded).
     pub fn samples_per_second(&self) -> f64 {
-        self.samples as f64 / self.seconds.max(1e-9)
+        self.samples as f64 / (self.seconds - self.prepass_seconds).max(1e-9)
     }
 
+    /// Rays per second of sampling (pre-pass excluded).
     #[must_use]
     pub fn rays_per_second(&self) -> f64 {
-        self.rays as f64 / self.seconds.max(1e-9)
+        self.rays as f64 / (self.seconds - self.prepass_seconds).max(1e-9)
     }
 }
 
@@ -109,11 +115,12 @@ impl<S: Send + Sync> Tile<S> {
     }
 }
 
-/// Renders `scene` with `integrator` over `accel`.
+/// Renders `scene` with `integrator` over `accel`: the integrator's pre-pass, then passes of
+/// samples. A time budget counts the pre-pass, so equal-time comparisons are fair.
 pub fn render<A: Accel, I: Integrator>(
     scene: &Scene,
     accel: &A,
-    integrator: &I,
+    integrator: &mut I,
     settings: &RenderSettings,
 ) -> Result<(Image, RenderStats)> {
     if settings.spp == Some(0) {
@@ -145,12 +152,16 @@ pub fn render<A: Accel, I: Integrator>(
 fn render_in_pool<A: Accel, I: Integrator>(
     scene: &Scene,
     accel: &A,
-    integrator: &I,
+    integrator: &mut I,
     settings: &RenderSettings,
     threads: usize,
 ) -> Result<(Image, RenderStats)> {
     let (width, height) = (scene.camera.width, scene.camera.height);
     let ctx = RenderContext { scene, accel };
+    let start = Instant::now();
+    let prepass = integrator.prepare(&ctx, settings.seed)?;
+    let prepass_seconds = start.elapsed().as_secs_f64();
+    let integrator: &I = integrator;
     let ts = settings.tile_size;
     let mut tiles: Vec<Tile<I::PixelState>> = Vec::new();
     for ty in (0..height).step_by(ts as usize) {
@@ -168,7 +179,6 @@ fn render_in_pool<A: Accel, I: Integrator>(
         }
     }
     let bar = progress_bar(settings);
-    let start = Instant::now();
     tiles.par_iter_mut().for_each(|tile| {
         let mut counters = Counters::default();
         tile.state =
@@ -212,7 +222,15 @@ fn render_in_pool<A: Accel, I: Integrator>(
             }
         }
     }
-    let stats = RenderStats { spp: done, seconds, samples: done as u64 * (width * height) as u64, rays, threads };
+    let stats = RenderStats {
+        spp: done,
+        seconds,
+        prepass_seconds,
+        samples: done as u64 * (width * height) as u64,
+        rays,
+        threads,
+        prepass,
+    };
     Ok((Image { width, height, pixels, variance: Some(variance), spp: done }, stats))
 }
 

@@ -22,7 +22,7 @@ pub fn settings(spp: u32, seed: u64) -> RenderSettings {
     RenderSettings { spp: Some(spp), seed, threads: Some(2), ..RenderSettings::default() }
 }
 
-pub fn render_bvh<I: Integrator>(scene: &Scene, integrator: &I, spp: u32, seed: u64) -> Image {
+pub fn render_bvh<I: Integrator>(scene: &Scene, integrator: &mut I, spp: u32, seed: u64) -> Image {
     let accel = BvhAccel::build(scene);
     render(scene, &accel, integrator, &settings(spp, seed)).unwrap().0
 }
@@ -86,6 +86,9 @@ impl<I: Integrator> Integrator for Scaled<I> {
     type PixelState = I::PixelState;
     fn name(&self) -> &'static str {
         "scaled"
+    }
+    fn prepare<A: Accel>(&mut self, ctx: &RenderContext<A>, seed: u64) -> zvidpt::Result<Option<String>> {
+        self.0.prepare(ctx, seed)
     }
     fn setup_pixel<A: Accel>(&self, ctx: &RenderContext<A>, p: UVec2, seed: u64, c: &mut Counters) -> I::PixelState {
         self.0.setup_pixel(ctx, p, seed, c)

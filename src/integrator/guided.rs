@@ -1,0 +1,173 @@
+//! What the photon-guided integrators share: the photon map and guide cache built in the
+//! pre-pass, the per-vertex query (`L̃r`, `L̃1` and the `GL` grid from one lookup), sampling a
+//! direction from the grid, and ZVIDPT's termination probability.
+use crate::Result;
+use crate::accel::Accel;
+use crate::geometry::{Frame, Vec3A, luminance};
+use crate::photon::guide::{sample_cdf, weights_to_cdf};
+use crate::photon::{FluxDensity, GridShape, GuideCache, GuidePhotons, MAX_GUIDE_CELLS, PhotonMap};
+use crate::sampler::SampleStream;
+use crate::scene::{Scene, SurfaceInteraction};
+use std::f32::consts::FRAC_1_PI;
+use std::time::Instant;
+
+/// Photon map and guide parameters (ALGORITHM.md §2, §4; paper values as defaults).
+#[derive(Clone, Debug)]
+pub struct GuideSettings {
+    /// Photons to store (paper: 6,891).
+    pub photons: usize,
+    /// Photons per radiance estimate (paper: N = 50).
+    pub knn: usize,
+    /// The `GL` grid (paper: 4×16).
+    pub grid: GridShape,
+    /// Photons shaping the grid.
+    pub which: GuidePhotons,
+    /// Precompute records (true) or query the photon map at every vertex (false).
+    pub cache: bool,
+    /// `ε_L`: every grid cell is floored at this fraction of the mean cell.
+    pub floor: f32,
+    /// Most records the cache holds.
+    pub max_records: usize,
+}
+
+impl Default for GuideSettings {
+    fn default() -> Self {
+        Self {
+            photons: 6891,
+            knn: 50,
+            grid: GridShape { rows: 4, cols: 16 },
+            which: GuidePhotons::Indirect,
+            cache: true,
+            floor: 0.1,
+            max_records: 1 << 16,
+        }
+    }
+}
+
+/// Pre-pass measurements, for the summary line and the closing figures.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PrepassReport {
+    pub photons: usize,
+    pub emitted: u64,
+    pub photon_seconds: f64,
+    pub records: usize,
+    pub cache_seconds: f64,
+}
+
+impl std::fmt::Display for PrepassReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} photons from {} paths in {:.3} s", self.photons, self.emitted, self.photon_seconds)?;
+        if self.records > 0 {
+            write!(
+                f,
+                ", {} guide records in {:.3} s ({:.0} k kNN queries/s)",
+                self.records,
+                self.cache_seconds,
+                self.records as f64 / self.cache_seconds.max(1e-9) / 1e3
+            )?;
+        }
+        Ok(())
+    }
+}
+
+pub struct Guide {
+    pub settings: GuideSettings,
+    pub map: PhotonMap,
+    cache: Option<GuideCache>,
+    pub report: PrepassReport,
+}
+
+/// Scratch for a per-vertex grid when the cache is off (stack, never the heap).
+pub type GridScratch = [f32; MAX_GUIDE_CELLS];
+
+/// `L̃r`-side estimates and the grid to sample at one vertex.
+pub struct VertexGuide<'a> {
+    pub density: FluxDensity,
+    pub cdf: &'a [f32],
+}
+
+impl Guide {
+    pub fn build<A: Accel>(scene: &Scene, accel: &A, settings: &GuideSettings, seed: u64) -> Result<Guide> {
+        let t = Instant::now();
+        let map = PhotonMap::build(scene, accel, settings.photons, seed)?;
+        let photon_seconds = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let cache = settings.cache.then(|| {
+            GuideCache::build(&map, settings.grid, settings.knn, settings.which, settings.floor, settings.max_records)
+        });
+        let report = PrepassReport {
+            photons: map.len(),
+            emitted: map.emitted,
+            photon_seconds,
+            records: cache.as_ref().map_or(0, |c| c.len()),
+            cache_seconds: t.elapsed().as_secs_f64(),
+        };
+        Ok(Guide { settings: settings.clone(), map, cache, report })
+    }
+
+    /// The estimates and grid at `si`: from the nearest cache record, or from a k-nearest
+    /// query into `scratch` when the cache is off. With no information the grid is uniform
+    /// (cosine sampling) and the densities are zero.
+    #[inline]
+    pub fn at<'a>(&'a self, si: &SurfaceInteraction, frame: &Frame, scratch: &'a mut GridScratch) -> VertexGuide<'a> {
+        let cells = self.settings.grid.cells();
+        if let Some(cache) = &self.cache {
+            if let Some(r) = cache.lookup(si.p, si.n) {
+                return VertexGuide { density: r.density, cdf: r.cdf };
+            }
+            let w = &mut scratch[..cells];
+            weights_to_cdf(w, 0.0);
+            return VertexGuide { density: FluxDensity::default(), cdf: w };
+        }
+        let w = &mut scratch[..cells];
+        w.fill(0.0);
+        let density = self.map.gather(
+            si.p,
+            si.n,
+            self.settings.knn,
+            Some((frame, self.settings.grid, self.settings.which, &mut *w)),
+        );
+        weights_to_cdf(w, self.settings.floor);
+        VertexGuide { density, cdf: w }
+    }
+
+    /// Flux density only (for the pixel grid), same source as [`Guide::at`].
+    #[inline]
+    pub fn density_at(&self, si: &SurfaceInteraction) -> FluxDensity {
+        match &self.cache {
+            Some(cache) => cache.lookup(si.p, si.n).map_or_else(FluxDensity::default, |r| r.density),
+            None => self.map.gather(si.p, si.n, self.settings.knn, None),
+        }
+    }
+
+    /// Samples a world direction from the vertex's grid; returns it with `f·cosθ/pdf`, which
+    /// for a Lambertian surface is `ρ / (Pc·|GL|)`.
+    #[inline]
+    pub fn sample_direction(
+        &self,
+        g: &VertexGuide,
+        frame: &Frame,
+        albedo: Vec3A,
+        rng: &mut SampleStream,
+    ) -> (Vec3A, Vec3A) {
+        let u_cell = rng.next_f32();
+        let (local, pc_cells) = sample_cdf(self.settings.grid, g.cdf, u_cell, rng.next_2d());
+        (frame.to_world(local), albedo / pc_cells)
+    }
+}
+
+/// `L̃ = ρ/π ⊙ density` (Lambertian).
+#[inline]
+#[must_use]
+pub fn radiance_estimate(albedo: Vec3A, density: Vec3A) -> Vec3A {
+    albedo * density * FRAC_1_PI
+}
+
+/// ZVIDPT's termination probability `q = clamp(lum(L̃1)/lum(L̃r), q_min, q_max)`, 0.5 where
+/// `L̃r = 0` (ALGORITHM.md §2). `q_max < 1` keeps the indirect term, so no bias.
+#[inline]
+#[must_use]
+pub fn termination_probability(albedo: Vec3A, d: &FluxDensity, q_min: f32, q_max: f32) -> f32 {
+    let lr = luminance(albedo * d.all);
+    if lr > 0.0 { (luminance(albedo * d.direct) / lr).clamp(q_min, q_max) } else { 0.5 }
+}

@@ -1,0 +1,171 @@
+//! Zero Variance Importance Sampling Driven Potential Tracing (paper §4, ALGORITHM.md §2–§3).
+//!
+//! A camera random walk solves `Lr = L1 + ∫ f cos Lr(y) dω`: pixels are importance-sampled on
+//! a subpixel grid `Gp` (§4.1), directions on the photon `GL` grid (§4.2, Eq. 7), and the walk
+//! terminates with `q = L̃1/L̃r` (§4.3). Two unbiased estimators:
+//! - terminal: on termination at `xL`, `W0·Le(x0) + WL·L̂1(xL)/qL`; zero variance when the
+//!   photon estimates are exact;
+//! - collision: `Wk·L̂1(xk)` at every state, continuing with probability `1 − qk`.
+//!
+//! The weights are `W0 = 1/(n·m·Pj)` and `W(k+1) = Wk · f·cosθ / (pdf(ωi)·(1 − qk))`.
+use super::guided::{GridScratch, Guide, GuideSettings, radiance_estimate, termination_probability};
+use super::{Counters, Integrator, RenderContext, direct_light};
+use crate::Result;
+use crate::accel::Accel;
+use crate::geometry::{Frame, UVec2, Vec2, Vec3A, luminance};
+use crate::photon::{GridShape, MAX_GUIDE_CELLS};
+use crate::sampler::{Domain, SampleStream};
+
+/// Most subpixels a pixel grid may have (the per-pixel state is a fixed array).
+pub const MAX_SUBPIXELS: usize = 32;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Estimator {
+    Terminal,
+    Collision,
+}
+
+pub struct Zvidpt {
+    pub estimator: Estimator,
+    pub settings: GuideSettings,
+    /// The pixel grid `Gp` (paper: 2×4).
+    pub pixel_grid: GridShape,
+    /// `ε_p`: subpixel values are floored at this fraction of their mean.
+    pub pixel_floor: f32,
+    pub q_min: f32,
+    pub q_max: f32,
+    pub guide: Option<Guide>,
+}
+
+impl Zvidpt {
+    #[must_use]
+    pub fn new(estimator: Estimator, settings: GuideSettings) -> Self {
+        Self {
+            estimator,
+            settings,
+            pixel_grid: GridShape { rows: 2, cols: 4 },
+            pixel_floor: 0.1,
+            q_min: 0.05,
+            q_max: 0.95,
+            guide: None,
+        }
+    }
+}
+
+/// A pixel's subpixel CDF (`Gp`), built once before its first sample.
+#[derive(Clone, Copy, Debug)]
+pub struct SubpixelGrid {
+    cdf: [f32; MAX_SUBPIXELS],
+}
+
+impl Integrator for Zvidpt {
+    type PixelState = SubpixelGrid;
+
+    fn name(&self) -> &'static str {
+        match self.estimator {
+            Estimator::Terminal => "zvidpt-terminal",
+            Estimator::Collision => "zvidpt-collision",
+        }
+    }
+
+    fn prepare<A: Accel>(&mut self, ctx: &RenderContext<A>, seed: u64) -> Result<Option<String>> {
+        let guide = Guide::build(ctx.scene, ctx.accel, &self.settings, seed)?;
+        let report = guide.report.to_string();
+        self.guide = Some(guide);
+        Ok(Some(report))
+    }
+
+    /// Paper §4.1: one camera ray through a jittered point of each subpixel, `vj = lum(Le +
+    /// L̃r)` at its first hit, floored by `ε_p · mean(v)`; uniform if all are zero.
+    fn setup_pixel<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        pixel: UVec2,
+        seed: u64,
+        counters: &mut Counters,
+    ) -> SubpixelGrid {
+        let guide = self.guide.as_ref().expect("prepare() builds the photon map");
+        let shape = self.pixel_grid;
+        let n = shape.cells();
+        let index = pixel.y as u64 * ctx.scene.camera.width as u64 + pixel.x as u64;
+        let mut rng = SampleStream::in_domain(Domain::PixelSetup, seed, index, 0);
+        let mut cdf = [0.0f32; MAX_SUBPIXELS];
+        for (j, v) in cdf.iter_mut().enumerate().take(n) {
+            let film = pixel.as_vec2() + subpixel_point(shape, j, rng.next_2d());
+            let ray = ctx.scene.camera.ray(film);
+            counters.rays += 1;
+            if let Some(hit) = ctx.accel.intersect(&ray) {
+                let si = ctx.scene.interaction(&ray, &hit);
+                let lr = radiance_estimate(si.material.diffuse, guide.density_at(&si).all);
+                *v = luminance(si.emitted() + lr);
+            }
+        }
+        crate::photon::guide::weights_to_cdf(&mut cdf[..n], self.pixel_floor);
+        SubpixelGrid { cdf }
+    }
+
+    fn sample<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        pixel: UVec2,
+        grid: &SubpixelGrid,
+        rng: &mut SampleStream,
+        counters: &mut Counters,
+    ) -> Vec3A {
+        let guide = self.guide.as_ref().expect("prepare() builds the photon map");
+        let shape = self.pixel_grid;
+        let n = shape.cells();
+        let cdf = &grid.cdf[..n];
+        let u_sub = rng.next_f32();
+        let j = cdf.partition_point(|&c| c <= u_sub).min(n - 1);
+        let pj = cdf[j] - if j > 0 { cdf[j - 1] } else { 0.0 };
+        let film = pixel.as_vec2() + subpixel_point(shape, j, rng.next_2d());
+        let ray = ctx.scene.camera.ray(film);
+        counters.rays += 1;
+        let Some(hit) = ctx.accel.intersect(&ray) else {
+            return Vec3A::ZERO;
+        };
+        let mut si = ctx.scene.interaction(&ray, &hit);
+        let mut weight = Vec3A::splat(1.0 / (n as f32 * pj));
+        let mut result = weight * si.emitted();
+        let mut scratch: GridScratch = [0.0; MAX_GUIDE_CELLS];
+        loop {
+            let albedo = si.material.diffuse;
+            // A surface that reflects nothing ends the walk: both branches below add zero.
+            if albedo == Vec3A::ZERO {
+                return result;
+            }
+            let frame = Frame::from_normal(si.n);
+            let g = guide.at(&si, &frame, &mut scratch);
+            let q = termination_probability(albedo, &g.density, self.q_min, self.q_max);
+            match self.estimator {
+                Estimator::Terminal => {
+                    if rng.next_f32() < q {
+                        return result + weight * direct_light(ctx, &si, rng, counters) / q;
+                    }
+                }
+                Estimator::Collision => {
+                    result += weight * direct_light(ctx, &si, rng, counters);
+                    if rng.next_f32() < q {
+                        return result;
+                    }
+                }
+            }
+            let (wi, f_cos_over_pdf) = guide.sample_direction(&g, &frame, albedo, rng);
+            weight *= f_cos_over_pdf / (1.0 - q);
+            let ray = si.spawn_ray(wi);
+            counters.rays += 1;
+            let Some(hit) = ctx.accel.intersect(&ray) else {
+                return result;
+            };
+            si = ctx.scene.interaction(&ray, &hit);
+        }
+    }
+}
+
+/// A uniform point (`u ∈ [0,1)²`) inside subpixel `j` of a pixel, in pixel units.
+#[inline]
+fn subpixel_point(shape: GridShape, j: usize, u: Vec2) -> Vec2 {
+    let (row, col) = (j as u32 / shape.cols, j as u32 % shape.cols);
+    Vec2::new((col as f32 + u.x) / shape.cols as f32, (row as f32 + u.y) / shape.rows as f32)
+}
