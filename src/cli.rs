@@ -322,7 +322,9 @@ fn run_info(args: &InfoArgs) -> Result<()> {
         (Some(v), spp) if spp > 1 => {
             let n = v.len() as f64;
             let se = [0, 1, 2].map(|c| (v.iter().map(|p| p[c] as f64).sum::<f64>() / spp as f64).sqrt() / n);
+            let mean_var = [0, 1, 2].map(|c| v.iter().map(|p| p[c] as f64).sum::<f64>() / n);
             println!(" ± ({:.5}, {:.5}, {:.5}) (1 s.e.)", se[0], se[1], se[2]);
+            println!("  mean per-sample variance ({:.4e}, {:.4e}, {:.4e})", mean_var[0], mean_var[1], mean_var[2]);
         }
         _ => println!(),
     }

@@ -116,6 +116,7 @@ impl Guide {
                 return VertexGuide { density: r.density, cdf: r.cdf };
             }
             let w = &mut scratch[..cells];
+            w.fill(0.0);
             weights_to_cdf(w, 0.0);
             return VertexGuide { density: FluxDensity::default(), cdf: w };
         }

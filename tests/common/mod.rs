@@ -33,9 +33,20 @@ pub fn render_bvh<I: Integrator>(scene: &Scene, integrator: &mut I, spp: u32, se
 /// estimators a short render's own variance misses the rare large samples and inflates z).
 /// Returns the largest |z| and the number of tests (blocks × 3).
 pub fn max_block_z(a: &Image, reference: &Image, block: u32) -> (f64, usize) {
+    block_z(a, reference, block, false)
+}
+
+/// As [`max_block_z`], but each image's mean uses its own variance (the classic two-sample
+/// test), for comparing different estimators whose variances differ.
+pub fn max_block_z_both(a: &Image, reference: &Image, block: u32) -> (f64, usize) {
+    block_z(a, reference, block, true)
+}
+
+fn block_z(a: &Image, reference: &Image, block: u32, own_variance: bool) -> (f64, usize) {
     let b = reference;
     assert_eq!((a.width, a.height), (b.width, b.height));
-    let (va, vb) = (b.variance.as_ref().unwrap(), b.variance.as_ref().unwrap());
+    let vb = b.variance.as_ref().unwrap();
+    let va = if own_variance { a.variance.as_ref().unwrap() } else { vb };
     let mut worst = 0.0f64;
     let mut tests = 0;
     for by in (0..a.height).step_by(block as usize) {
