@@ -275,6 +275,9 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     if let Some(p) = &stats.prepass {
         println!("pre-pass: {p}");
     }
+    if stats.non_finite > 0 {
+        eprintln!("warning: {} samples were NaN or infinite and were dropped", stats.non_finite);
+    }
     println!(
         "{} {}x{}, {} spp, {:.2} s{}, {:.2} M samples/s, {:.2} M rays/s ({}, {}, {} threads) -> {}{}",
         scene.name,

@@ -74,11 +74,10 @@ pub struct Guide {
     pub settings: GuideSettings,
     pub map: PhotonMap,
     cache: Option<GuideCache>,
+    /// The grid used where nothing is known: uniform, i.e. cosine sampling.
+    uniform_cdf: Vec<f32>,
     pub report: PrepassReport,
 }
-
-/// Scratch for a per-vertex grid when the cache is off (stack, never the heap).
-pub type GridScratch = [f32; MAX_GUIDE_CELLS];
 
 /// `L̃r`-side estimates and the grid to sample at one vertex.
 pub struct VertexGuide<'a> {
@@ -102,26 +101,26 @@ impl Guide {
             records: cache.as_ref().map_or(0, |c| c.len()),
             cache_seconds: t.elapsed().as_secs_f64(),
         };
-        Ok(Guide { settings: settings.clone(), map, cache, report })
+        let mut uniform_cdf = vec![0.0; settings.grid.cells()];
+        weights_to_cdf(&mut uniform_cdf, 0.0);
+        debug_assert!(settings.grid.cells() <= MAX_GUIDE_CELLS);
+        Ok(Guide { settings: settings.clone(), map, cache, uniform_cdf, report })
     }
 
-    /// The estimates and grid at `si`: from the nearest cache record, or from a k-nearest
-    /// query into `scratch` when the cache is off. With no information the grid is uniform
-    /// (cosine sampling) and the densities are zero.
+    /// The estimates and grid at `si`: from a nearby cache record, or from a k-nearest query
+    /// built into `grid` (per-tile scratch, sized once) when the cache is off. With no
+    /// information the grid is uniform (cosine sampling) and the densities are zero.
     #[inline]
-    pub fn at<'a>(&'a self, si: &SurfaceInteraction, frame: &Frame, scratch: &'a mut GridScratch) -> VertexGuide<'a> {
-        let cells = self.settings.grid.cells();
+    pub fn at<'a>(&'a self, si: &SurfaceInteraction, frame: &Frame, grid: &'a mut Vec<f32>) -> VertexGuide<'a> {
         if let Some(cache) = &self.cache {
-            if let Some(r) = cache.lookup(si.p, si.n) {
-                return VertexGuide { density: r.density, cdf: r.cdf };
-            }
-            let w = &mut scratch[..cells];
-            w.fill(0.0);
-            weights_to_cdf(w, 0.0);
-            return VertexGuide { density: FluxDensity::default(), cdf: w };
+            return match cache.lookup(si.p, si.n) {
+                Some(r) => VertexGuide { density: r.density, cdf: r.cdf },
+                None => VertexGuide { density: FluxDensity::default(), cdf: &self.uniform_cdf },
+            };
         }
-        let w = &mut scratch[..cells];
-        w.fill(0.0);
+        let w = grid;
+        w.clear();
+        w.resize(self.settings.grid.cells(), 0.0);
         let density = self.map.gather(
             si.p,
             si.n,

@@ -1,13 +1,13 @@
 //! Jensen 1995, importance-driven path tracing (ALGORITHM.md §5): the path tracer with
 //! directions drawn from the photon `GL` grid (all photons), uniform pixel sampling, albedo
 //! Russian roulette and next event estimation at every vertex (collision-type accumulation).
-use super::guided::{GridScratch, Guide, GuideSettings};
+use super::guided::{Guide, GuideSettings};
 use super::path::survival_probability;
-use super::{Counters, Integrator, RenderContext, direct_light};
+use super::{Integrator, RenderContext, Scratch, direct_light};
 use crate::Result;
 use crate::accel::Accel;
 use crate::geometry::{Frame, UVec2, Vec3A};
-use crate::photon::{GuidePhotons, MAX_GUIDE_CELLS};
+use crate::photon::GuidePhotons;
 use crate::sampler::SampleStream;
 
 pub struct Jensen {
@@ -38,7 +38,7 @@ impl Integrator for Jensen {
         Ok(Some(report))
     }
 
-    fn setup_pixel<A: Accel>(&self, _: &RenderContext<A>, _: UVec2, _: u64, _: &mut Counters) {}
+    fn setup_pixel<A: Accel>(&self, _: &RenderContext<A>, _: UVec2, _: u64, _: &mut Scratch) {}
 
     fn sample<A: Accel>(
         &self,
@@ -46,17 +46,17 @@ impl Integrator for Jensen {
         pixel: UVec2,
         _: &(),
         rng: &mut SampleStream,
-        counters: &mut Counters,
+        scratch: &mut Scratch,
     ) -> Vec3A {
         let guide = self.guide.as_ref().expect("prepare() builds the photon map");
-        let mut scratch: GridScratch = [0.0; MAX_GUIDE_CELLS];
         let ray = ctx.scene.camera.ray(pixel.as_vec2() + rng.next_2d());
-        counters.rays += 1;
+        scratch.rays += 1;
         let Some(hit) = ctx.accel.intersect(&ray) else {
             return Vec3A::ZERO;
         };
         let mut si = ctx.scene.interaction(&ray, &hit);
         let mut radiance = si.emitted();
+        let mut grid = std::mem::take(&mut scratch.grid);
         let mut throughput = Vec3A::ONE;
         let mut bounce = 0;
         loop {
@@ -64,7 +64,7 @@ impl Integrator for Jensen {
             if albedo == Vec3A::ZERO {
                 break;
             }
-            radiance += throughput * direct_light(ctx, &si, rng, counters);
+            radiance += throughput * direct_light(ctx, &si, rng, scratch);
             if bounce >= self.rr_depth {
                 let q = survival_probability(albedo);
                 if rng.next_f32() >= q {
@@ -73,17 +73,18 @@ impl Integrator for Jensen {
                 throughput /= q;
             }
             let frame = Frame::from_normal(si.n);
-            let g = guide.at(&si, &frame, &mut scratch);
+            let g = guide.at(&si, &frame, &mut grid);
             let (wi, weight) = guide.sample_direction(&g, &frame, albedo, rng);
             throughput *= weight;
             let ray = si.spawn_ray(wi);
-            counters.rays += 1;
+            scratch.rays += 1;
             let Some(hit) = ctx.accel.intersect(&ray) else {
                 break;
             };
             si = ctx.scene.interaction(&ray, &hit);
             bounce += 1;
         }
+        scratch.grid = grid;
         radiance
     }
 }

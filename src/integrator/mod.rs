@@ -22,10 +22,15 @@ pub struct RenderContext<'a, A: Accel> {
     pub accel: &'a A,
 }
 
-/// Per-thread tallies, summed per tile: no shared counters in the sample loop.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct Counters {
+/// Per-tile tallies and scratch memory, owned by the tile being rendered: no shared counters
+/// and no allocation in the sample loop (pbrt's per-thread scratch).
+#[derive(Clone, Debug, Default)]
+pub struct Scratch {
     pub rays: u64,
+    /// Samples that came out NaN or infinite (dropped; reported after the render).
+    pub non_finite: u64,
+    /// Room for one guide grid, for integrators that build grids per vertex.
+    pub grid: Vec<f32>,
 }
 
 pub trait Integrator: Sync + Send {
@@ -46,7 +51,7 @@ pub trait Integrator: Sync + Send {
         ctx: &RenderContext<A>,
         pixel: UVec2,
         seed: u64,
-        counters: &mut Counters,
+        scratch: &mut Scratch,
     ) -> Self::PixelState;
 
     /// One sample of `pixel`: an unbiased estimate of the pixel's mean radiance.
@@ -56,7 +61,7 @@ pub trait Integrator: Sync + Send {
         pixel: UVec2,
         state: &Self::PixelState,
         rng: &mut SampleStream,
-        counters: &mut Counters,
+        scratch: &mut Scratch,
     ) -> Vec3A;
 }
 
@@ -68,7 +73,7 @@ pub fn direct_light<A: Accel>(
     ctx: &RenderContext<A>,
     si: &SurfaceInteraction,
     rng: &mut SampleStream,
-    counters: &mut Counters,
+    scratch: &mut Scratch,
 ) -> Vec3A {
     let u_pick = rng.next_f32();
     let u_point = rng.next_2d();
@@ -88,7 +93,7 @@ pub fn direct_light<A: Accel>(
     let target = offset_ray_origin(light.p, light.p_err, light.ng, -wi);
     let span = target - origin;
     let len = span.length();
-    counters.rays += 1;
+    scratch.rays += 1;
     if ctx.accel.occluded(&Ray::new(origin, span / len), len * (1.0 - 1e-4)) {
         return Vec3A::ZERO;
     }

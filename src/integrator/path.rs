@@ -2,7 +2,7 @@
 //! cosine sampling, next event estimation, Russian roulette by albedo after a few bounces.
 //! Emission seen directly by the camera is added once; afterwards light is collected only by
 //! NEE, so nothing is counted twice.
-use super::{Counters, Integrator, RenderContext, direct_light};
+use super::{Integrator, RenderContext, Scratch, direct_light};
 use crate::accel::Accel;
 use crate::geometry::{Frame, UVec2, Vec3A, warp};
 use crate::sampler::SampleStream;
@@ -34,7 +34,7 @@ impl Integrator for PathTracer {
         "path"
     }
 
-    fn setup_pixel<A: Accel>(&self, _: &RenderContext<A>, _: UVec2, _: u64, _: &mut Counters) {}
+    fn setup_pixel<A: Accel>(&self, _: &RenderContext<A>, _: UVec2, _: u64, _: &mut Scratch) {}
 
     #[inline]
     fn sample<A: Accel>(
@@ -43,11 +43,11 @@ impl Integrator for PathTracer {
         pixel: UVec2,
         _: &(),
         rng: &mut SampleStream,
-        counters: &mut Counters,
+        scratch: &mut Scratch,
     ) -> Vec3A {
         let film = pixel.as_vec2() + rng.next_2d();
         let ray = ctx.scene.camera.ray(film);
-        counters.rays += 1;
+        scratch.rays += 1;
         let Some(hit) = ctx.accel.intersect(&ray) else {
             return Vec3A::ZERO;
         };
@@ -60,7 +60,7 @@ impl Integrator for PathTracer {
             if albedo == Vec3A::ZERO {
                 break;
             }
-            radiance += throughput * direct_light(ctx, &si, rng, counters);
+            radiance += throughput * direct_light(ctx, &si, rng, scratch);
             if bounce >= self.rr_depth {
                 let q = survival_probability(albedo);
                 if rng.next_f32() >= q {
@@ -72,7 +72,7 @@ impl Integrator for PathTracer {
             let wi = Frame::from_normal(si.n).to_world(warp::cosine_hemisphere(rng.next_2d()));
             throughput *= albedo;
             let ray = si.spawn_ray(wi);
-            counters.rays += 1;
+            scratch.rays += 1;
             let Some(hit) = ctx.accel.intersect(&ray) else {
                 break;
             };

@@ -8,13 +8,14 @@
 //! - collision: `Wk·L̂1(xk)` at every state, continuing with probability `1 − qk`.
 //!
 //! The weights are `W0 = 1/(n·m·Pj)` and `W(k+1) = Wk · f·cosθ / (pdf(ωi)·(1 − qk))`.
-use super::guided::{GridScratch, Guide, GuideSettings, radiance_estimate, termination_probability};
-use super::{Counters, Integrator, RenderContext, direct_light};
+use super::guided::{Guide, GuideSettings, radiance_estimate, termination_probability};
+use super::{Integrator, RenderContext, Scratch, direct_light};
 use crate::Result;
 use crate::accel::Accel;
 use crate::geometry::{Frame, UVec2, Vec2, Vec3A, luminance};
-use crate::photon::{GridShape, MAX_GUIDE_CELLS};
+use crate::photon::GridShape;
 use crate::sampler::{Domain, SampleStream};
+use crate::scene::SurfaceInteraction;
 
 /// Most subpixels a pixel grid may have (the per-pixel state is a fixed array).
 pub const MAX_SUBPIXELS: usize = 32;
@@ -82,7 +83,7 @@ impl Integrator for Zvidpt {
         ctx: &RenderContext<A>,
         pixel: UVec2,
         seed: u64,
-        counters: &mut Counters,
+        scratch: &mut Scratch,
     ) -> SubpixelGrid {
         let guide = self.guide.as_ref().expect("prepare() builds the photon map");
         let shape = self.pixel_grid;
@@ -93,7 +94,7 @@ impl Integrator for Zvidpt {
         for (j, v) in cdf.iter_mut().enumerate().take(n) {
             let film = pixel.as_vec2() + subpixel_point(shape, j, rng.next_2d());
             let ray = ctx.scene.camera.ray(film);
-            counters.rays += 1;
+            scratch.rays += 1;
             if let Some(hit) = ctx.accel.intersect(&ray) {
                 let si = ctx.scene.interaction(&ray, &hit);
                 let lr = radiance_estimate(si.material.diffuse, guide.density_at(&si).all);
@@ -110,7 +111,7 @@ impl Integrator for Zvidpt {
         pixel: UVec2,
         grid: &SubpixelGrid,
         rng: &mut SampleStream,
-        counters: &mut Counters,
+        scratch: &mut Scratch,
     ) -> Vec3A {
         let guide = self.guide.as_ref().expect("prepare() builds the photon map");
         let shape = self.pixel_grid;
@@ -121,14 +122,34 @@ impl Integrator for Zvidpt {
         let pj = cdf[j] - if j > 0 { cdf[j - 1] } else { 0.0 };
         let film = pixel.as_vec2() + subpixel_point(shape, j, rng.next_2d());
         let ray = ctx.scene.camera.ray(film);
-        counters.rays += 1;
+        scratch.rays += 1;
         let Some(hit) = ctx.accel.intersect(&ray) else {
             return Vec3A::ZERO;
         };
-        let mut si = ctx.scene.interaction(&ray, &hit);
-        let mut weight = Vec3A::splat(1.0 / (n as f32 * pj));
+        let si = ctx.scene.interaction(&ray, &hit);
+        let weight = Vec3A::splat(1.0 / (n as f32 * pj));
+        let mut grid = std::mem::take(&mut scratch.grid);
+        let value = self.walk(ctx, guide, si, weight, rng, scratch, &mut grid);
+        scratch.grid = grid;
+        value
+    }
+}
+
+impl Zvidpt {
+    /// The walk from the camera vertex `si` with weight `W0` (paper §4.2–§4.3).
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn walk<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        guide: &Guide,
+        mut si: SurfaceInteraction,
+        mut weight: Vec3A,
+        rng: &mut SampleStream,
+        scratch: &mut Scratch,
+        grid: &mut Vec<f32>,
+    ) -> Vec3A {
         let mut result = weight * si.emitted();
-        let mut scratch: GridScratch = [0.0; MAX_GUIDE_CELLS];
         loop {
             let albedo = si.material.diffuse;
             // A surface that reflects nothing ends the walk: both branches below add zero.
@@ -136,16 +157,16 @@ impl Integrator for Zvidpt {
                 return result;
             }
             let frame = Frame::from_normal(si.n);
-            let g = guide.at(&si, &frame, &mut scratch);
+            let g = guide.at(&si, &frame, grid);
             let q = termination_probability(albedo, &g.density, self.q_min, self.q_max);
             match self.estimator {
                 Estimator::Terminal => {
                     if rng.next_f32() < q {
-                        return result + weight * direct_light(ctx, &si, rng, counters) / q;
+                        return result + weight * direct_light(ctx, &si, rng, scratch) / q;
                     }
                 }
                 Estimator::Collision => {
-                    result += weight * direct_light(ctx, &si, rng, counters);
+                    result += weight * direct_light(ctx, &si, rng, scratch);
                     if rng.next_f32() < q {
                         return result;
                     }
@@ -154,7 +175,7 @@ impl Integrator for Zvidpt {
             let (wi, f_cos_over_pdf) = guide.sample_direction(&g, &frame, albedo, rng);
             weight *= f_cos_over_pdf / (1.0 - q);
             let ray = si.spawn_ray(wi);
-            counters.rays += 1;
+            scratch.rays += 1;
             let Some(hit) = ctx.accel.intersect(&ray) else {
                 return result;
             };

@@ -4,7 +4,7 @@
 use crate::accel::Accel;
 use crate::film::Image;
 use crate::geometry::{UVec2, Vec3A};
-use crate::integrator::{Counters, Integrator, RenderContext};
+use crate::integrator::{Integrator, RenderContext, Scratch};
 use crate::sampler::SampleStream;
 use crate::scene::Scene;
 use crate::{Error, Result};
@@ -48,6 +48,8 @@ pub struct RenderStats {
     pub threads: usize,
     /// What the pre-pass built, if the integrator has one.
     pub prepass: Option<String>,
+    /// Samples dropped for being NaN or infinite (0 for a correct integrator).
+    pub non_finite: u64,
 }
 
 impl RenderStats {
@@ -70,7 +72,7 @@ struct Tile<S> {
     sum: Vec<[f64; 3]>,
     sum_sq: Vec<[f64; 3]>,
     state: Vec<S>,
-    counters: Counters,
+    scratch: Scratch,
 }
 
 impl<S: Send + Sync> Tile<S> {
@@ -89,7 +91,7 @@ impl<S: Send + Sync> Tile<S> {
         first: u32,
         count: u32,
     ) {
-        let mut counters = self.counters;
+        let mut scratch = std::mem::take(&mut self.scratch);
         for y in 0..self.size.y {
             for x in 0..self.size.x {
                 let i = (y * self.size.x + x) as usize;
@@ -98,9 +100,15 @@ impl<S: Send + Sync> Tile<S> {
                 let (mut sum, mut sum_sq) = (self.sum[i], self.sum_sq[i]);
                 for s in first..first + count {
                     let mut rng = SampleStream::new(seed, index, s);
-                    let v = integrator.sample(ctx, pixel, &self.state[i], &mut rng, &mut counters);
+                    let v = integrator.sample(ctx, pixel, &self.state[i], &mut rng, &mut scratch);
                     debug_assert!(v.is_finite() && v.min_element() >= 0.0, "sample {v} at {pixel}");
-                    let v = if v.is_finite() { v } else { Vec3A::ZERO };
+                    // Never silently: a non-finite sample is counted and reported.
+                    let v = if v.is_finite() {
+                        v
+                    } else {
+                        scratch.non_finite += 1;
+                        Vec3A::ZERO
+                    };
                     for c in 0..3 {
                         let x = v[c] as f64;
                         sum[c] += x;
@@ -111,7 +119,7 @@ impl<S: Send + Sync> Tile<S> {
                 self.sum_sq[i] = sum_sq;
             }
         }
-        self.counters = counters;
+        self.scratch = scratch;
     }
 }
 
@@ -174,16 +182,15 @@ fn render_in_pool<A: Accel, I: Integrator>(
                 sum: vec![[0.0; 3]; n],
                 sum_sq: vec![[0.0; 3]; n],
                 state: Vec::new(),
-                counters: Counters::default(),
+                scratch: Scratch::default(),
             });
         }
     }
     let bar = progress_bar(settings);
     tiles.par_iter_mut().for_each(|tile| {
-        let mut counters = Counters::default();
-        tile.state =
-            tile.pixels().map(|(_, p)| integrator.setup_pixel(&ctx, p, settings.seed, &mut counters)).collect();
-        tile.counters = counters;
+        let mut scratch = Scratch::default();
+        tile.state = tile.pixels().map(|(_, p)| integrator.setup_pixel(&ctx, p, settings.seed, &mut scratch)).collect();
+        tile.scratch = scratch;
     });
     // Whole passes. A pass is one sample per pixel under a time budget (so the budget is
     // overshot by at most one pass) and a few samples otherwise (fewer, larger tasks).
@@ -209,9 +216,10 @@ fn render_in_pool<A: Accel, I: Integrator>(
     let n = done as f64;
     let mut pixels = vec![[0.0f32; 3]; (width * height) as usize];
     let mut variance = vec![[0.0f32; 3]; pixels.len()];
-    let mut rays = 0;
+    let (mut rays, mut non_finite) = (0, 0);
     for tile in &tiles {
-        rays += tile.counters.rays;
+        rays += tile.scratch.rays;
+        non_finite += tile.scratch.non_finite;
         for (i, p) in tile.pixels() {
             let j = (p.y * width + p.x) as usize;
             for c in 0..3 {
@@ -230,6 +238,7 @@ fn render_in_pool<A: Accel, I: Integrator>(
         rays,
         threads,
         prepass,
+        non_finite,
     };
     Ok((Image { width, height, pixels, variance: Some(variance), spp: done }, stats))
 }

@@ -3,7 +3,7 @@
 use zvidpt::accel::{Accel, BvhAccel};
 use zvidpt::film::Image;
 use zvidpt::geometry::{UVec2, Vec3A};
-use zvidpt::integrator::{Counters, Integrator, RenderContext};
+use zvidpt::integrator::{Integrator, RenderContext, Scratch};
 use zvidpt::render::{RenderSettings, render};
 use zvidpt::sampler::SampleStream;
 use zvidpt::scene::Scene;
@@ -101,7 +101,7 @@ impl<I: Integrator> Integrator for Scaled<I> {
     fn prepare<A: Accel>(&mut self, ctx: &RenderContext<A>, seed: u64) -> zvidpt::Result<Option<String>> {
         self.0.prepare(ctx, seed)
     }
-    fn setup_pixel<A: Accel>(&self, ctx: &RenderContext<A>, p: UVec2, seed: u64, c: &mut Counters) -> I::PixelState {
+    fn setup_pixel<A: Accel>(&self, ctx: &RenderContext<A>, p: UVec2, seed: u64, c: &mut Scratch) -> I::PixelState {
         self.0.setup_pixel(ctx, p, seed, c)
     }
     fn sample<A: Accel>(
@@ -110,7 +110,7 @@ impl<I: Integrator> Integrator for Scaled<I> {
         p: UVec2,
         s: &I::PixelState,
         rng: &mut SampleStream,
-        c: &mut Counters,
+        c: &mut Scratch,
     ) -> Vec3A {
         self.0.sample(ctx, p, s, rng, c) * self.1
     }
