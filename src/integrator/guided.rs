@@ -51,7 +51,10 @@ pub struct PrepassReport {
     pub emitted: u64,
     pub photon_seconds: f64,
     pub records: usize,
-    pub cache_seconds: f64,
+    /// The records' k-nearest queries and grids.
+    pub knn_seconds: f64,
+    /// The voxel table that finds a record for any point.
+    pub table_seconds: f64,
 }
 
 impl std::fmt::Display for PrepassReport {
@@ -60,10 +63,11 @@ impl std::fmt::Display for PrepassReport {
         if self.records > 0 {
             write!(
                 f,
-                ", {} guide records in {:.3} s ({:.0} k kNN queries/s)",
+                ", {} guide records in {:.3} s ({:.0} k kNN queries/s) + voxel table {:.3} s",
                 self.records,
-                self.cache_seconds,
-                self.records as f64 / self.cache_seconds.max(1e-9) / 1e3
+                self.knn_seconds,
+                self.records as f64 / self.knn_seconds.max(1e-9) / 1e3,
+                self.table_seconds
             )?;
         }
         Ok(())
@@ -90,7 +94,6 @@ impl Guide {
         let t = Instant::now();
         let map = PhotonMap::build(scene, accel, settings.photons, seed)?;
         let photon_seconds = t.elapsed().as_secs_f64();
-        let t = Instant::now();
         let cache = settings.cache.then(|| {
             GuideCache::build(&map, settings.grid, settings.knn, settings.which, settings.floor, settings.max_records)
         });
@@ -99,7 +102,8 @@ impl Guide {
             emitted: map.emitted,
             photon_seconds,
             records: cache.as_ref().map_or(0, |c| c.len()),
-            cache_seconds: t.elapsed().as_secs_f64(),
+            knn_seconds: cache.as_ref().map_or(0.0, |c| c.seconds.0),
+            table_seconds: cache.as_ref().map_or(0.0, |c| c.seconds.1),
         };
         let mut uniform_cdf = vec![0.0; settings.grid.cells()];
         weights_to_cdf(&mut uniform_cdf, 0.0);

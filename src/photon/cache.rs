@@ -52,6 +52,8 @@ pub struct GuideCache {
     voxels: Vec<u32>,
     density: Vec<FluxDensity>,
     cdf: Vec<f32>,
+    /// Seconds spent on the records' k-nearest queries and grids, and on the voxel table.
+    pub seconds: (f64, f64),
 }
 
 impl GuideCache {
@@ -66,6 +68,7 @@ impl GuideCache {
         floor: f32,
         max_records: usize,
     ) -> Self {
+        let start = std::time::Instant::now();
         let stride = map.len().div_ceil(max_records.max(1)).max(1);
         let sites: Vec<usize> = (0..map.len()).step_by(stride).collect();
         let cells = shape.cells();
@@ -79,6 +82,8 @@ impl GuideCache {
                 (d, w)
             })
             .collect();
+        let knn_seconds = start.elapsed().as_secs_f64();
+        let start = std::time::Instant::now();
         // Voxel table over the records' bounds (a small margin so every vertex near a record
         // maps inside), each voxel holding the record nearest to it in voxel steps: records
         // are splatted into their voxels, then a breadth-first flood fills the rest.
@@ -93,8 +98,16 @@ impl GuideCache {
         let dims = ((hi - min) / voxel).to_array().map(|d| (d.ceil() as u32 + 2).max(1));
         let per_bucket = dims.iter().map(|&d| d as usize).product::<usize>();
         let mut voxels = if sites.is_empty() { Vec::new() } else { vec![NO_RECORD; per_bucket * BUCKETS] };
-        let mut cache =
-            Self { shape, min, inv_voxel: 1.0 / voxel, dims, voxels: Vec::new(), density: Vec::new(), cdf: Vec::new() };
+        let mut cache = Self {
+            shape,
+            min,
+            inv_voxel: 1.0 / voxel,
+            dims,
+            voxels: Vec::new(),
+            density: Vec::new(),
+            cdf: Vec::new(),
+            seconds: (knn_seconds, 0.0),
+        };
         if !sites.is_empty() {
             for b in 0..BUCKETS {
                 let table = &mut voxels[b * per_bucket..(b + 1) * per_bucket];
@@ -120,6 +133,7 @@ impl GuideCache {
             }
         }
         cache.voxels = voxels;
+        cache.seconds.1 = start.elapsed().as_secs_f64();
         cache.density = built.iter().map(|(d, _)| *d).collect();
         cache.cdf = built.into_iter().flat_map(|(_, w)| w).collect();
         debug_assert!(cells <= MAX_GUIDE_CELLS);
