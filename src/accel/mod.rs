@@ -2,6 +2,9 @@
 //! ([`with_backend`]); everything below is generic over [`Accel`] and monomorphised.
 mod brute;
 mod bvh;
+// One of the two places the `embree` feature appears (the other is `with_backend`).
+#[cfg(feature = "embree")]
+pub mod embree;
 
 pub use brute::BruteForce;
 pub use bvh::BvhAccel;
@@ -48,15 +51,18 @@ pub enum BackendKind {
     Auto,
 }
 
+/// Whether this build has the Embree backend.
+pub const EMBREE_AVAILABLE: bool = cfg!(feature = "embree");
+
 impl BackendKind {
     /// Fails with a clear message when the backend is not compiled into this build.
     pub fn check_available(self) -> Result<()> {
-        match self {
-            BackendKind::Bvh | BackendKind::Auto => Ok(()),
-            BackendKind::Embree => Err(crate::Error::Backend(
+        if self == BackendKind::Embree && !EMBREE_AVAILABLE {
+            return Err(crate::Error::Backend(
                 "the embree backend is not compiled in: rebuild with `cargo build --release --features embree`".into(),
-            )),
+            ));
         }
+        Ok(())
     }
 }
 
@@ -69,8 +75,10 @@ pub trait WithAccel {
 /// Builds the chosen backend over `scene` and runs `job` with it: the one place where the
 /// backend is chosen at run time.
 pub fn with_backend<J: WithAccel>(kind: BackendKind, scene: &Scene, job: J) -> Result<J::Output> {
-    match kind {
-        BackendKind::Bvh | BackendKind::Auto => Ok(job.run(&BvhAccel::build(scene))),
-        BackendKind::Embree => Err(BackendKind::Embree.check_available().unwrap_err()),
+    kind.check_available()?;
+    #[cfg(feature = "embree")]
+    if matches!(kind, BackendKind::Embree | BackendKind::Auto) {
+        return Ok(job.run(&embree::EmbreeAccel::build(scene)?));
     }
+    Ok(job.run(&BvhAccel::build(scene)))
 }
