@@ -167,12 +167,16 @@ mod query {
     use super::sys;
 
     #[inline(always)]
+    // Needed where Embree is built with several instance levels (an extra field).
+    #[allow(clippy::needless_update)]
     pub fn context() -> sys::RTCIntersectContext {
-        let mut c = sys::RTCIntersectContext::default();
-        c.flags = sys::RTCIntersectContextFlags_RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
-        c.filter = None;
-        c.instID = [super::INVALID_ID; sys::RTC_MAX_INSTANCE_LEVEL_COUNT as usize];
-        c
+        // `instStackSize` exists only in multi-level builds; the default zeroes it.
+        sys::RTCIntersectContext {
+            flags: sys::RTCIntersectContextFlags_RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT,
+            filter: None,
+            instID: [super::INVALID_ID; sys::RTC_MAX_INSTANCE_LEVEL_COUNT as usize],
+            ..Default::default()
+        }
     }
 
     macro_rules! call {
@@ -240,7 +244,7 @@ impl Accel for EmbreeAccel<'_> {
         // SAFETY: the scene is committed and live; `rh` is a properly initialised, suitably
         // aligned RTCRayHit that Embree may write for the duration of the call.
         unsafe { call!(rtcIntersect1, self.raw.as_ptr(), &mut rh) };
-        (rh.hit.geomID != INVALID_ID).then(|| Hit { t: rh.ray.tfar, prim: rh.hit.primID, u: rh.hit.u, v: rh.hit.v })
+        (rh.hit.geomID != INVALID_ID).then_some(Hit { t: rh.ray.tfar, prim: rh.hit.primID, u: rh.hit.u, v: rh.hit.v })
     }
 
     #[inline]
