@@ -133,6 +133,18 @@ impl Scene {
         Self { name, path, camera, triangles, normals, triangle_material, materials, emitters, warnings }
     }
 
+    /// A scene from raw triangles with one material, for procedural geometry (benchmarks,
+    /// tests). Degenerate triangles are dropped.
+    #[must_use]
+    pub fn from_triangles(name: &str, camera: Camera, triangles: Vec<[Vec3A; 3]>, material: Material) -> Self {
+        let triangles: Vec<[Vec3A; 3]> = triangles
+            .into_iter()
+            .filter(|t| (t[1] - t[0]).cross(t[2] - t[0]).normalize_or_zero() != Vec3A::ZERO)
+            .collect();
+        let n = triangles.len();
+        Self::from_parts(name.into(), PathBuf::new(), camera, triangles, vec![0; n], vec![material], Vec::new())
+    }
+
     /// Replaces the image resolution, keeping the camera's view.
     pub fn set_resolution(&mut self, width: u32, height: u32) -> crate::Result<()> {
         load::check_resolution(width, height).map_err(|m| crate::Error::InvalidOption(m.to_string()))?;
