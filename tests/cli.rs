@@ -92,7 +92,9 @@ fn render_info_and_diff_smoke() {
     assert!(a.with_extension("png").is_file() && b.with_extension("png").is_file());
     let info = zvidpt(&["info", s(&a)]);
     let text = String::from_utf8_lossy(&info.stdout);
-    for key in ["integrator = path", "backend = bvh", "spp = 4", "seed = 1", "seconds = ", "version = "] {
+    // `--backend auto` (the default) picks Embree when this build has it.
+    let backend = if cfg!(feature = "embree") { "backend = embree" } else { "backend = bvh" };
+    for key in ["integrator = path", backend, "spp = 4", "seed = 1", "seconds = ", "version = "] {
         assert!(text.contains(key), "{key} missing from info:\n{text}");
     }
     let diff = zvidpt(&["diff", s(&a), s(&b), "--error-map", s(&map)]);
