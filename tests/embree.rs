@@ -77,9 +77,9 @@ fn embree_agrees_with_brute_force_and_bvh() {
 /// Watertightness: rays from inside a closed, shared-vertex sphere (5120 triangles) must hit
 /// it. 1M rays: 750k in random directions, 125k aimed exactly at shared vertices, 125k at
 /// edge midpoints (where leaks happen). Misses are reported per backend and kind; measured:
-/// Embree (robust) [345, 0, 0] and obvhs [287, 6612, 0] for (vertex, edge, random). Asserted:
-/// no escape for random rays on either backend and none at edges for Embree; vertex-aimed
-/// escapes stay below 0.5% on both.
+/// Embree (robust) [345, 0, 0] and obvhs [41, 0, 0] for (vertex, edge, random) — obvhs was
+/// [287, 6612, 0] with its own Möller–Trumbore test, before our watertight one. Asserted: no
+/// escape for random or edge-aimed rays on either backend; vertex-aimed escapes below 0.5%.
 #[test]
 fn watertight_inside_closed_sphere() {
     let scene = scene("furnace");
@@ -105,7 +105,7 @@ fn watertight_inside_closed_sphere() {
         "watertightness, {n} rays from inside the furnace sphere, misses (vertex, edge, random): embree {miss_embree:?}, bvh {miss_bvh:?}"
     );
     assert_eq!(miss_embree[2] + miss_bvh[2], 0, "random rays escaped");
-    assert_eq!(miss_embree[1], 0, "Embree leaked at an edge");
+    assert_eq!(miss_embree[1] + miss_bvh[1], 0, "a ray leaked through an edge");
     assert!(miss_embree[0] * 200 < n / 8 && miss_bvh[0] * 200 < n / 8);
 }
 

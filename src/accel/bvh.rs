@@ -1,19 +1,20 @@
-//! The pure-Rust backend: obvhs' compressed wide BVH (CWBVH, 8-wide) over triangles stored in
-//! leaf order, so a leaf's primitive index reads its triangle directly.
+//! The pure-Rust backend: obvhs' compressed wide BVH (CWBVH, 8-wide) traversal over triangles
+//! stored in leaf order (a leaf's primitive index reads its triangle directly), with our
+//! watertight triangle test: obvhs' own Möller–Trumbore test let 5.3% of rays aimed at shared
+//! edges escape a closed sphere.
 use super::Accel;
-use crate::geometry::{Hit, Ray};
+use crate::geometry::{Hit, Ray, Vec3A, WatertightRay};
 use crate::scene::Scene;
 use obvhs::BvhBuildParams;
 use obvhs::cwbvh::{CwBvh, builder::build_cwbvh_from_tris};
 use obvhs::ray::{Ray as BvhRay, RayHit};
-use obvhs::rt_triangle::RtTriangle;
 use obvhs::triangle::Triangle;
 use std::time::Duration;
 
 pub struct BvhAccel {
     bvh: CwBvh,
     /// Triangles in BVH leaf order.
-    triangles: Vec<RtTriangle>,
+    triangles: Vec<[Vec3A; 3]>,
     /// Scene primitive id of each triangle in leaf order.
     scene_prim: Vec<u32>,
 }
@@ -33,7 +34,7 @@ impl BvhAccel {
         let params = BvhBuildParams { pre_split: false, ..BvhBuildParams::medium_build() };
         let mut build_time = Duration::ZERO;
         let bvh = build_cwbvh_from_tris(&input, params, &mut build_time);
-        let triangles = bvh.primitive_indices.iter().map(|&i| RtTriangle::from(&input[i as usize])).collect();
+        let triangles = bvh.primitive_indices.iter().map(|&i| tris[i as usize]).collect();
         let scene_prim = bvh.primitive_indices.clone();
         Self { bvh, triangles, scene_prim }
     }
@@ -54,15 +55,14 @@ impl Accel for BvhAccel {
         if !ray.is_valid() {
             return None;
         }
-        let r = Self::bvh_ray(ray, f32::INFINITY);
+        let w = WatertightRay::new(ray);
         let mut hit = RayHit::none();
-        if !self.bvh.ray_traverse(r, &mut hit, |r, i| self.triangles[i].intersect(r)) {
+        let test = |r: &BvhRay, i: usize| w.intersect(&self.triangles[i], r.tmax).map_or(f32::INFINITY, |h| h.0);
+        if !self.bvh.ray_traverse(Self::bvh_ray(ray, f32::INFINITY), &mut hit, test) {
             return None;
         }
-        let tri = &self.triangles[hit.primitive_id as usize];
-        // obvhs' barycentrics weigh v1 and v2, matching our Hit convention.
-        let b = tri.compute_barycentric(&r);
-        Some(Hit { t: hit.t, prim: self.scene_prim[hit.primitive_id as usize], u: b.x, v: b.y })
+        let (t, u, v) = w.intersect(&self.triangles[hit.primitive_id as usize], f32::INFINITY)?;
+        Some(Hit { t, prim: self.scene_prim[hit.primitive_id as usize], u, v })
     }
 
     #[inline]
@@ -70,6 +70,8 @@ impl Accel for BvhAccel {
         if !ray.is_valid() || t_max.is_nan() || t_max <= 0.0 {
             return false;
         }
-        !self.bvh.ray_traverse_miss(Self::bvh_ray(ray, t_max), |r, i| self.triangles[i].intersect(r))
+        let w = WatertightRay::new(ray);
+        let test = |r: &BvhRay, i: usize| w.intersect(&self.triangles[i], r.tmax).map_or(f32::INFINITY, |h| h.0);
+        !self.bvh.ray_traverse_miss(Self::bvh_ray(ray, t_max), test)
     }
 }

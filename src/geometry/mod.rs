@@ -8,7 +8,7 @@ pub mod warp;
 pub use frame::Frame;
 pub use offset::{barycentric_error, offset_ray_origin};
 pub use ray::{Hit, Ray};
-pub use triangle::intersect_triangle;
+pub use triangle::{WatertightRay, intersect_triangle};
 
 pub use glam::{UVec2, Vec2, Vec3, Vec3A};
 
