@@ -98,6 +98,10 @@ pub struct RenderArgs {
     /// paper's choice). Jensen always uses all.
     #[arg(long, value_enum, default_value_t = GuidePhotons::Indirect)]
     pub guide: GuidePhotons,
+    /// ε_L: every guide-grid cell is floored at this fraction of the mean cell (ALGORITHM.md
+    /// §2); larger values mix in more cosine sampling and bound the path weights.
+    #[arg(long, default_value_t = 0.1)]
+    pub guide_floor: f32,
     /// Precompute guide records after the photon pass (on) or query the photon map at every
     /// walk vertex (off, the paper's way; slower).
     #[arg(long, value_enum, default_value_t = Switch::On)]
@@ -185,6 +189,7 @@ impl WithAccel for RenderJob<'_> {
             grid: a.guide_grid,
             which: a.guide,
             cache: a.guide_cache == Switch::On,
+            floor: a.guide_floor,
             ..GuideSettings::default()
         };
         let zvidpt = |estimator| Zvidpt { pixel_grid: a.pixel_grid, ..Zvidpt::new(estimator, guide.clone()) };
@@ -223,6 +228,9 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     }
     if args.knn == 0 {
         return Err(Error::InvalidOption("--knn must be at least 1".into()));
+    }
+    if !(args.guide_floor.is_finite() && args.guide_floor > 0.0) {
+        return Err(Error::InvalidOption("--guide-floor must be a positive number".into()));
     }
     args.backend.check_available()?;
     let mut scene = Scene::load(locate_scene(&args.scene))?;
