@@ -2,8 +2,8 @@
 //! directions drawn from the photon `GL` grid (all photons), uniform pixel sampling, albedo
 //! Russian roulette and next event estimation at every vertex (collision-type accumulation).
 use super::guided::{Guide, GuideSettings};
-use super::path::survival_probability;
-use super::{Integrator, RenderContext, Scratch, direct_light};
+use super::path::trace_path;
+use super::{Integrator, RenderContext, Scratch};
 use crate::Result;
 use crate::accel::Accel;
 use crate::geometry::{Frame, UVec2, Vec3A};
@@ -49,41 +49,12 @@ impl Integrator for Jensen {
         scratch: &mut Scratch,
     ) -> Vec3A {
         let guide = self.guide.as_ref().expect("prepare() builds the photon map");
-        let ray = ctx.scene.camera.ray(pixel.as_vec2() + rng.next_2d());
-        scratch.rays += 1;
-        let Some(hit) = ctx.accel.intersect(&ray) else {
-            return Vec3A::ZERO;
-        };
-        let mut si = ctx.scene.interaction(&ray, &hit);
-        let mut radiance = si.emitted();
         let mut grid = std::mem::take(&mut scratch.grid);
-        let mut throughput = Vec3A::ONE;
-        let mut bounce = 0;
-        loop {
-            let albedo = si.material.diffuse;
-            if albedo == Vec3A::ZERO {
-                break;
-            }
-            radiance += throughput * direct_light(ctx, &si, rng, scratch);
-            if bounce >= self.rr_depth {
-                let q = survival_probability(albedo);
-                if rng.next_f32() >= q {
-                    break;
-                }
-                throughput /= q;
-            }
+        let radiance = trace_path(ctx, pixel, rng, scratch, self.rr_depth, |si, rng| {
             let frame = Frame::from_normal(si.n);
-            let g = guide.at(&si, &frame, &mut grid);
-            let (wi, weight) = guide.sample_direction(&g, &frame, albedo, rng);
-            throughput *= weight;
-            let ray = si.spawn_ray(wi);
-            scratch.rays += 1;
-            let Some(hit) = ctx.accel.intersect(&ray) else {
-                break;
-            };
-            si = ctx.scene.interaction(&ray, &hit);
-            bounce += 1;
-        }
+            let g = guide.at(si, &frame, &mut grid);
+            guide.sample_direction(&g, &frame, si.material.diffuse, rng)
+        });
         scratch.grid = grid;
         radiance
     }
