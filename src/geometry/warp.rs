@@ -49,7 +49,6 @@ pub fn uniform_triangle(u: Vec2) -> [f32; 3] {
 pub struct Discrete {
     cdf: Vec<f32>,
     pmf: Vec<f32>,
-    total: f64,
 }
 
 impl Discrete {
@@ -72,7 +71,7 @@ impl Discrete {
         // The last entry must be exactly one so that every u < 1 finds a bucket.
         *cdf.last_mut().unwrap() = 1.0;
         let pmf = weights.iter().map(|&w| (w as f64 / total) as f32).collect();
-        Some(Self { cdf, pmf, total })
+        Some(Self { cdf, pmf })
     }
 
     /// Picks an item with probability ∝ its weight; returns the item and its probability.
@@ -98,11 +97,6 @@ impl Discrete {
     #[must_use]
     pub fn is_empty(&self) -> bool {
         self.pmf.is_empty()
-    }
-
-    #[must_use]
-    pub fn total(&self) -> f64 {
-        self.total
     }
 }
 

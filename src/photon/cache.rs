@@ -141,11 +141,6 @@ impl GuideCache {
     }
 
     #[must_use]
-    pub fn shape(&self) -> GridShape {
-        self.shape
-    }
-
-    #[must_use]
     pub fn len(&self) -> usize {
         self.density.len()
     }

@@ -212,15 +212,4 @@ impl Scene {
             pdf_area: pmf / self.emitters.areas[i],
         })
     }
-
-    /// Emitter triangles (scene prim ids), their areas and their selection probabilities.
-    pub fn emitter_triangles(&self) -> impl Iterator<Item = (u32, f32, f32)> + '_ {
-        let choice = self.emitters.choice.as_ref();
-        self.emitters
-            .prims
-            .iter()
-            .zip(&self.emitters.areas)
-            .enumerate()
-            .map(move |(i, (&p, &a))| (p, a, choice.map_or(0.0, |c| c.pmf(i))))
-    }
 }
