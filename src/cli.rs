@@ -82,6 +82,31 @@ pub struct RenderArgs {
     /// Light-transport algorithm.
     #[arg(long, value_enum, default_value_t = IntegratorKind::Path)]
     pub integrator: IntegratorKind,
+    #[command(flatten)]
+    pub photon: PhotonArgs,
+    /// Ray-tracing backend (auto: Embree when compiled in, otherwise bvh).
+    #[arg(long, value_enum, default_value_t = BackendKind::Auto)]
+    pub backend: BackendKind,
+    /// Worker threads [default: one per core].
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Random seed; the same seed, scene and flags give the same image bytes.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Override the scene's resolution, as WIDTHxHEIGHT (the view is kept).
+    #[arg(long, value_parser = parse_resolution)]
+    pub resolution: Option<(u32, u32)>,
+    /// Tile side in pixels (does not change the image).
+    #[arg(long, default_value_t = 32)]
+    pub tile_size: u32,
+    /// No progress bar.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+/// Photon map and guide options of the guided integrators (jensen, zvidpt-*).
+#[derive(Clone, Debug, Args)]
+pub struct PhotonArgs {
     /// Photons stored by the photon pass (jensen, zvidpt-*; the paper used 6891).
     #[arg(long, default_value_t = 6891)]
     pub photons: usize,
@@ -106,24 +131,46 @@ pub struct RenderArgs {
     /// walk vertex (off, the paper's way; slower).
     #[arg(long, value_enum, default_value_t = Switch::On)]
     pub guide_cache: Switch,
-    /// Ray-tracing backend (auto: Embree when compiled in, otherwise bvh).
-    #[arg(long, value_enum, default_value_t = BackendKind::Auto)]
-    pub backend: BackendKind,
-    /// Worker threads [default: one per core].
-    #[arg(long)]
-    pub threads: Option<usize>,
-    /// Random seed; the same seed, scene and flags give the same image bytes.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// Override the scene's resolution, as WIDTHxHEIGHT (the view is kept).
-    #[arg(long, value_parser = parse_resolution)]
-    pub resolution: Option<(u32, u32)>,
-    /// Tile side in pixels (does not change the image).
-    #[arg(long, default_value_t = 32)]
-    pub tile_size: u32,
-    /// No progress bar.
-    #[arg(short, long)]
-    pub quiet: bool,
+}
+
+impl PhotonArgs {
+    fn settings(&self) -> GuideSettings {
+        GuideSettings {
+            photons: self.photons,
+            knn: self.knn,
+            grid: self.guide_grid,
+            which: self.guide,
+            cache: self.guide_cache == Switch::On,
+            floor: self.guide_floor,
+            ..GuideSettings::default()
+        }
+    }
+
+    fn check(&self) -> Result<()> {
+        if self.knn == 0 {
+            return Err(Error::InvalidOption("--knn must be at least 1".into()));
+        }
+        if !(self.guide_floor.is_finite() && self.guide_floor > 0.0) {
+            return Err(Error::InvalidOption("--guide-floor must be a positive number".into()));
+        }
+        Ok(())
+    }
+
+    /// Metadata describing the options that shaped `integrator`'s image.
+    fn describe(&self, integrator: IntegratorKind, meta: &mut Metadata) {
+        if integrator == IntegratorKind::Path {
+            return;
+        }
+        meta.push("photons", self.photons);
+        meta.push("knn", self.knn);
+        meta.push("guide_grid", format!("{}x{}", self.guide_grid.rows, self.guide_grid.cols));
+        meta.push("guide_cache", if self.guide_cache == Switch::On { "on" } else { "off" });
+        meta.push("guide_floor", self.guide_floor);
+        if matches!(integrator, IntegratorKind::ZvidptTerminal | IntegratorKind::ZvidptCollision) {
+            meta.push("pixel_grid", format!("{}x{}", self.pixel_grid.rows, self.pixel_grid.cols));
+            meta.push("guide", if self.guide == GuidePhotons::All { "all" } else { "indirect" });
+        }
+    }
 }
 
 #[derive(Debug, Args)]
@@ -175,26 +222,19 @@ fn locate_scene(path: &Path) -> PathBuf {
 /// Renders with whichever backend the user chose: the one dynamic choice, at the top.
 struct RenderJob<'a> {
     scene: &'a Scene,
-    args: &'a RenderArgs,
+    integrator: IntegratorKind,
+    photon: &'a PhotonArgs,
     settings: &'a RenderSettings,
 }
 
 impl WithAccel for RenderJob<'_> {
     type Output = Result<(Image, RenderStats, &'static str)>;
     fn run<A: Accel>(self, accel: &A) -> Self::Output {
-        let a = self.args;
-        let guide = GuideSettings {
-            photons: a.photons,
-            knn: a.knn,
-            grid: a.guide_grid,
-            which: a.guide,
-            cache: a.guide_cache == Switch::On,
-            floor: a.guide_floor,
-            ..GuideSettings::default()
-        };
+        let a = self.photon;
+        let guide = a.settings();
         let zvidpt = |estimator| Zvidpt { pixel_grid: a.pixel_grid, ..Zvidpt::new(estimator, guide.clone()) };
         let (scene, s) = (self.scene, self.settings);
-        let (image, stats) = match a.integrator {
+        let (image, stats) = match self.integrator {
             IntegratorKind::Path => render(scene, accel, &mut PathTracer::default(), s)?,
             IntegratorKind::Jensen => render(scene, accel, &mut Jensen::new(guide.clone()), s)?,
             IntegratorKind::ZvidptTerminal => render(scene, accel, &mut zvidpt(Estimator::Terminal), s)?,
@@ -202,6 +242,18 @@ impl WithAccel for RenderJob<'_> {
         };
         Ok((image, stats, accel.name()))
     }
+}
+
+/// Renders `scene` with `integrator` on `backend`: the one place below the command line
+/// where the backend and the integrator are chosen. Returns the backend's name too.
+pub fn render_scene(
+    scene: &Scene,
+    integrator: IntegratorKind,
+    photon: &PhotonArgs,
+    backend: BackendKind,
+    settings: &RenderSettings,
+) -> Result<(Image, RenderStats, &'static str)> {
+    with_backend(backend, scene, RenderJob { scene, integrator, photon, settings })?
 }
 
 /// Renders as the command line says; returns what it measured.
@@ -226,12 +278,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     if args.threads == Some(0) {
         return Err(Error::InvalidOption("--threads must be at least 1".into()));
     }
-    if args.knn == 0 {
-        return Err(Error::InvalidOption("--knn must be at least 1".into()));
-    }
-    if !(args.guide_floor.is_finite() && args.guide_floor > 0.0) {
-        return Err(Error::InvalidOption("--guide-floor must be a positive number".into()));
-    }
+    args.photon.check()?;
     args.backend.check_available()?;
     let mut scene = Scene::load(locate_scene(&args.scene))?;
     if let Some((w, h)) = args.resolution {
@@ -250,8 +297,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         progress: !args.quiet,
     };
     let integrator = args.integrator;
-    let (image, stats, backend) =
-        with_backend(args.backend, &scene, RenderJob { scene: &scene, args, settings: &settings })??;
+    let (image, stats, backend) = render_scene(&scene, integrator, &args.photon, args.backend, &settings)?;
 
     let mut meta = Metadata::default();
     meta.push("scene", scene.path.display());
@@ -262,17 +308,9 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     meta.push("prepass_seconds", format!("{:.3}", stats.prepass_seconds));
     if let Some(p) = &stats.prepass {
         meta.push("prepass", p);
-        if integrator != IntegratorKind::Path {
-            meta.push("photons", args.photons);
-            meta.push("knn", args.knn);
-            meta.push("guide_grid", format!("{}x{}", args.guide_grid.rows, args.guide_grid.cols));
-            meta.push("guide_cache", if args.guide_cache == Switch::On { "on" } else { "off" });
-        }
-        if matches!(integrator, IntegratorKind::ZvidptTerminal | IntegratorKind::ZvidptCollision) {
-            meta.push("pixel_grid", format!("{}x{}", args.pixel_grid.rows, args.pixel_grid.cols));
-            meta.push("guide", if args.guide == GuidePhotons::All { "all" } else { "indirect" });
-        }
     }
+    args.photon.describe(integrator, &mut meta);
+    meta.push("scene_hash", format!("{:016x}", scene.content_hash()));
     meta.push("threads", stats.threads);
     meta.push("rays", stats.rays);
     meta.push("version", crate::VERSION);

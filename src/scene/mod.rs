@@ -145,6 +145,33 @@ impl Scene {
         Self::from_parts(name.into(), PathBuf::new(), camera, triangles, vec![0; n], vec![material], Vec::new())
     }
 
+    /// A hash of everything that decides the image: triangles, materials, camera and
+    /// resolution (FNV-1a over their bits). Reference images are cached under it.
+    #[must_use]
+    pub fn content_hash(&self) -> u64 {
+        let mut h = 0xcbf2_9ce4_8422_2325u64;
+        let mut eat = |x: u32| {
+            for b in x.to_le_bytes() {
+                h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+            }
+        };
+        for t in &self.triangles {
+            t.iter().flat_map(|v| v.to_array()).for_each(|x| eat(x.to_bits()));
+        }
+        self.triangle_material.iter().for_each(|&m| eat(m));
+        for m in &self.materials {
+            m.diffuse.to_array().into_iter().chain(m.emission.to_array()).for_each(|x| eat(x.to_bits()));
+        }
+        let c = &self.camera;
+        for x in [c.width, c.height] {
+            eat(x);
+        }
+        for v in [c.ray(glam::Vec2::ZERO).dir, c.ray(glam::Vec2::new(c.width as f32, c.height as f32)).dir, c.eye] {
+            v.to_array().into_iter().for_each(|x| eat(x.to_bits()));
+        }
+        h
+    }
+
     /// Replaces the image resolution, keeping the camera's view.
     pub fn set_resolution(&mut self, width: u32, height: u32) -> crate::Result<()> {
         load::check_resolution(width, height).map_err(|m| crate::Error::InvalidOption(m.to_string()))?;
