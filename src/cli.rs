@@ -28,6 +28,79 @@ pub enum Command {
     Diff(DiffArgs),
     /// Print an EXR's size, render metadata and per-channel mean.
     Info(InfoArgs),
+    /// Render a high-spp path-traced reference (with per-pixel variance); skipped when the
+    /// output already holds a reference of the same scene (content hash) and spp.
+    Reference(ReferenceArgs),
+    /// Measure MSE and relMSE against a reference for several integrators and sample counts,
+    /// averaged over independent seeds; writes CSVs into a folder.
+    Converge(ConvergeArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct ReferenceArgs {
+    /// Scene file, or a folder holding `scene.toml`.
+    #[arg(default_value = "scenes/cornell-paper")]
+    pub scene: PathBuf,
+    /// Samples per pixel.
+    #[arg(long, default_value_t = 4096)]
+    pub spp: u32,
+    /// Output EXR (with a PNG beside it).
+    #[arg(short, long, default_value = "reference.exr")]
+    pub output: PathBuf,
+    /// Override the scene's resolution, as WIDTHxHEIGHT.
+    #[arg(long, value_parser = parse_resolution)]
+    pub resolution: Option<(u32, u32)>,
+    /// Ray-tracing backend.
+    #[arg(long, value_enum, default_value_t = BackendKind::Auto)]
+    pub backend: BackendKind,
+    /// Worker threads [default: one per core].
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Random seed (kept apart from the seeds `converge` uses).
+    #[arg(long, default_value_t = 1_000_003)]
+    pub seed: u64,
+    /// Render even if an up-to-date reference exists.
+    #[arg(long)]
+    pub force: bool,
+    /// No progress bar.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct ConvergeArgs {
+    /// Scene file, or a folder holding `scene.toml`.
+    #[arg(default_value = "scenes/cornell-paper")]
+    pub scene: PathBuf,
+    /// Integrators to compare, comma-separated.
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "path,jensen,zvidpt-collision,zvidpt-terminal")]
+    pub integrators: Vec<IntegratorKind>,
+    /// Samples per pixel to measure at, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "1,2,4,8,16,32,64,100")]
+    pub spp: Vec<u32>,
+    /// Independent runs (seeds) per integrator and spp.
+    #[arg(long, default_value_t = 4)]
+    pub runs: u32,
+    /// Reference EXR (see `zvidpt reference`).
+    #[arg(long)]
+    pub reference: PathBuf,
+    /// Output folder for runs.csv and converge.csv.
+    #[arg(short, long, default_value = "converge")]
+    pub output: PathBuf,
+    /// Override the scene's resolution (must match the reference's).
+    #[arg(long, value_parser = parse_resolution)]
+    pub resolution: Option<(u32, u32)>,
+    /// Ray-tracing backend.
+    #[arg(long, value_enum, default_value_t = BackendKind::Auto)]
+    pub backend: BackendKind,
+    /// Worker threads [default: one per core].
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// First seed; run r uses seed + r.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    #[command(flatten)]
+    pub photon: PhotonArgs,
 }
 
 #[derive(Debug, Args)]
@@ -134,6 +207,20 @@ pub struct PhotonArgs {
 }
 
 impl PhotonArgs {
+    /// The defaults (the path tracer ignores them).
+    fn default_for_path() -> Self {
+        let g = GuideSettings::default();
+        Self {
+            photons: g.photons,
+            knn: g.knn,
+            guide_grid: g.grid,
+            pixel_grid: GridShape { rows: 2, cols: 4 },
+            guide: g.which,
+            guide_floor: g.floor,
+            guide_cache: Switch::On,
+        }
+    }
+
     fn settings(&self) -> GuideSettings {
         GuideSettings {
             photons: self.photons,
@@ -205,6 +292,8 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Render(args) => run_render(&args).map(|_| ()),
         Command::Diff(args) => run_diff(&args),
         Command::Info(args) => run_info(&args),
+        Command::Reference(args) => run_reference(&args),
+        Command::Converge(args) => run_converge(&args),
     }
 }
 
@@ -380,5 +469,141 @@ fn run_info(args: &InfoArgs) -> Result<()> {
     for (k, v) in &meta.entries {
         println!("  {k} = {v}");
     }
+    Ok(())
+}
+
+fn load_at(scene: &Path, resolution: Option<(u32, u32)>) -> Result<Scene> {
+    let mut scene = Scene::load(locate_scene(scene))?;
+    if let Some((w, h)) = resolution {
+        scene.set_resolution(w, h)?;
+    }
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(scene)
+}
+
+fn run_reference(args: &ReferenceArgs) -> Result<()> {
+    if args.spp == 0 {
+        return Err(Error::InvalidOption("--spp must be at least 1".into()));
+    }
+    args.backend.check_available()?;
+    let scene = load_at(&args.scene, args.resolution)?;
+    let hash = format!("{:016x}", scene.content_hash());
+    if !args.force && args.output.is_file() {
+        if let Ok((image, meta)) = film::read_exr(&args.output) {
+            if meta.get("scene_hash") == Some(hash.as_str())
+                && image.spp == args.spp
+                && meta.get("integrator") == Some("path")
+                && image.variance.is_some()
+            {
+                println!(
+                    "{}: up to date ({} spp, scene {hash}); --force renders it again",
+                    args.output.display(),
+                    args.spp
+                );
+                return Ok(());
+            }
+        }
+    }
+    film::check_writable(&args.output)?;
+    let settings = RenderSettings {
+        spp: Some(args.spp),
+        time_limit: None,
+        seed: args.seed,
+        threads: args.threads,
+        tile_size: 32,
+        progress: !args.quiet,
+    };
+    let photon = PhotonArgs::default_for_path();
+    let (image, stats, backend) = render_scene(&scene, IntegratorKind::Path, &photon, args.backend, &settings)?;
+    let mut meta = Metadata::default();
+    meta.push("scene", scene.path.display());
+    meta.push("scene_hash", &hash);
+    meta.push("integrator", "path");
+    meta.push("backend", backend);
+    meta.push("seed", args.seed);
+    meta.push("seconds", format!("{:.3}", stats.seconds));
+    meta.push("threads", stats.threads);
+    meta.push("version", crate::VERSION);
+    film::write_exr(&args.output, &image, &meta)?;
+    film::write_png(&args.output.with_extension("png"), &image, 0.0)?;
+    println!(
+        "{}: reference {}x{}, {} spp, {:.1} s ({}, {} threads)",
+        args.output.display(),
+        image.width,
+        image.height,
+        stats.spp,
+        stats.seconds,
+        backend,
+        stats.threads
+    );
+    Ok(())
+}
+
+fn run_converge(args: &ConvergeArgs) -> Result<()> {
+    if args.runs == 0 || args.spp.is_empty() || args.spp.contains(&0) || args.integrators.is_empty() {
+        return Err(Error::InvalidOption(
+            "--runs, --spp and --integrators need at least one positive value each".into(),
+        ));
+    }
+    args.photon.check()?;
+    args.backend.check_available()?;
+    let scene = load_at(&args.scene, args.resolution)?;
+    let (reference, ref_meta) = film::read_exr(&args.reference)?;
+    if (reference.width, reference.height) != (scene.camera.width, scene.camera.height) {
+        return Err(Error::InvalidOption(format!(
+            "the reference is {}x{} but the scene renders at {}x{} (use --resolution)",
+            reference.width, reference.height, scene.camera.width, scene.camera.height
+        )));
+    }
+    let hash = format!("{:016x}", scene.content_hash());
+    if ref_meta.get("scene_hash").is_some_and(|h| h != hash) {
+        return Err(Error::InvalidOption(format!("{} was rendered from a different scene", args.reference.display())));
+    }
+    let mut runs = Vec::new();
+    for &integrator in &args.integrators {
+        let name = integrator.to_possible_value().map_or("?".into(), |v| v.get_name().to_string());
+        for &spp in &args.spp {
+            for r in 0..args.runs {
+                let seed = args.seed + r as u64;
+                let settings = RenderSettings {
+                    spp: Some(spp),
+                    time_limit: None,
+                    seed,
+                    threads: args.threads,
+                    tile_size: 32,
+                    progress: false,
+                };
+                let (image, stats, _) = render_scene(&scene, integrator, &args.photon, args.backend, &settings)?;
+                let metrics = film::metrics(&image, &reference)?;
+                eprintln!(
+                    "{name} {spp} spp seed {seed}: MSE {:.4e} relMSE {:.4e} in {:.2} s",
+                    metrics.mse, metrics.rel_mse, stats.seconds
+                );
+                runs.push(crate::converge::Run {
+                    integrator: name.clone(),
+                    spp,
+                    seed,
+                    seconds: stats.seconds,
+                    prepass_seconds: stats.prepass_seconds,
+                    metrics,
+                });
+            }
+        }
+    }
+    let summary = crate::converge::summarise(&runs);
+    crate::converge::write_csv(&args.output, &runs, &summary)?;
+    println!(
+        "{:<18} {:>5} {:>12} {:>10} {:>12} {:>9} {:>9}",
+        "integrator", "spp", "MSE", "± s.e.", "relMSE", "seconds", "pre-pass"
+    );
+    for s in &summary {
+        println!(
+            "{:<18} {:>5} {:>12.4e} {:>10.2e} {:>12.4e} {:>9.3} {:>9.3}",
+            s.integrator, s.spp, s.mse.0, s.mse.1, s.rel_mse.0, s.seconds.0, s.prepass_seconds
+        );
+    }
+    println!("-> {}", args.output.join("converge.csv").display());
     Ok(())
 }

@@ -10,6 +10,7 @@
 
 pub mod accel;
 pub mod cli;
+pub mod converge;
 pub mod error;
 pub mod film;
 pub mod geometry;

@@ -278,3 +278,40 @@ fn diff_errors() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.starts_with("error: ") && stderr.lines().count() == 1, "{stderr}");
 }
+
+#[test]
+fn reference_is_cached_and_converge_writes_csv() {
+    let d = scratch("converge");
+    let reference = d.join("ref.exr");
+    let scene = repo("scenes/cornell-paper");
+    let make = || zvidpt(&["reference", &scene, "--resolution", "32x24", "--spp", "8", "-o", s(&reference), "-q"]);
+    let first = make();
+    assert!(first.status.success(), "{}", String::from_utf8_lossy(&first.stderr));
+    assert!(String::from_utf8_lossy(&make().stdout).contains("up to date"));
+    let out = d.join("out");
+    let run = zvidpt(&[
+        "converge",
+        &scene,
+        "--resolution",
+        "32x24",
+        "--reference",
+        s(&reference),
+        "--spp",
+        "1,2",
+        "--runs",
+        "2",
+        "--integrators",
+        "path,zvidpt-terminal",
+        "-o",
+        s(&out),
+    ]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let csv = std::fs::read_to_string(out.join("converge.csv")).unwrap();
+    assert!(csv.starts_with("integrator,spp,runs,mse"));
+    assert_eq!(csv.lines().count(), 1 + 2 * 2, "{csv}");
+    assert_eq!(std::fs::read_to_string(out.join("runs.csv")).unwrap().lines().count(), 1 + 2 * 2 * 2);
+    // A reference of another resolution is refused with one error line.
+    let bad = zvidpt(&["converge", &scene, "--resolution", "16x12", "--reference", s(&reference), "-o", s(&out)]);
+    let stderr = String::from_utf8_lossy(&bad.stderr);
+    assert!(!bad.status.success() && stderr.lines().count() == 1 && stderr.contains("32x24"), "{stderr}");
+}

@@ -1,0 +1,145 @@
+//! Convergence measurements (issue 6): error against a reference as a function of samples per
+//! pixel and of seconds, averaged over independent seeds, written as CSV.
+use crate::film::{Metrics, write_atomically};
+use crate::{Error, Result};
+use std::io::Write;
+use std::path::Path;
+
+/// One render's measurements.
+#[derive(Clone, Debug)]
+pub struct Run {
+    pub integrator: String,
+    pub spp: u32,
+    pub seed: u64,
+    pub seconds: f64,
+    pub prepass_seconds: f64,
+    pub metrics: Metrics,
+}
+
+/// The mean and standard error of the runs sharing an integrator and spp.
+#[derive(Clone, Debug)]
+pub struct Summary {
+    pub integrator: String,
+    pub spp: u32,
+    pub runs: usize,
+    pub mse: (f64, f64),
+    pub rel_mse: (f64, f64),
+    pub seconds: (f64, f64),
+    pub prepass_seconds: f64,
+}
+
+/// Mean and standard error of the mean (0 for a single value).
+#[must_use]
+pub fn mean_and_se(x: &[f64]) -> (f64, f64) {
+    let n = x.len() as f64;
+    if x.is_empty() {
+        return (f64::NAN, f64::NAN);
+    }
+    let m = x.iter().sum::<f64>() / n;
+    if x.len() < 2 {
+        return (m, 0.0);
+    }
+    let var = x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (n - 1.0);
+    (m, (var / n).sqrt())
+}
+
+/// Groups runs by (integrator, spp), in first-seen order.
+#[must_use]
+pub fn summarise(runs: &[Run]) -> Vec<Summary> {
+    let mut keys: Vec<(String, u32)> = Vec::new();
+    for r in runs {
+        if !keys.iter().any(|(i, s)| *i == r.integrator && *s == r.spp) {
+            keys.push((r.integrator.clone(), r.spp));
+        }
+    }
+    keys.into_iter()
+        .map(|(integrator, spp)| {
+            let group: Vec<&Run> = runs.iter().filter(|r| r.integrator == integrator && r.spp == spp).collect();
+            let col = |f: &dyn Fn(&Run) -> f64| group.iter().map(|r| f(r)).collect::<Vec<f64>>();
+            Summary {
+                runs: group.len(),
+                mse: mean_and_se(&col(&|r| r.metrics.mse)),
+                rel_mse: mean_and_se(&col(&|r| r.metrics.rel_mse)),
+                seconds: mean_and_se(&col(&|r| r.seconds)),
+                prepass_seconds: mean_and_se(&col(&|r| r.prepass_seconds)).0,
+                integrator,
+                spp,
+            }
+        })
+        .collect()
+}
+
+/// Writes the per-run and the summary CSVs into `dir` (created if needed), atomically.
+fn io(p: &Path) -> impl Fn(std::io::Error) -> Error + '_ {
+    move |e| Error::io(p, e)
+}
+
+pub fn write_csv(dir: &Path, runs: &[Run], summary: &[Summary]) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let path = dir.join("runs.csv");
+    write_atomically(&path, |w| {
+        writeln!(w, "integrator,spp,seed,seconds,prepass_seconds,mse,rel_mse").map_err(io(&path))?;
+        for r in runs {
+            writeln!(
+                w,
+                "{},{},{},{:.4},{:.4},{:.6e},{:.6e}",
+                r.integrator, r.spp, r.seed, r.seconds, r.prepass_seconds, r.metrics.mse, r.metrics.rel_mse
+            )
+            .map_err(io(&path))?;
+        }
+        Ok(())
+    })?;
+    let path = dir.join("converge.csv");
+    write_atomically(&path, |w| {
+        writeln!(w, "integrator,spp,runs,mse,mse_se,rel_mse,rel_mse_se,seconds,seconds_se,prepass_seconds")
+            .map_err(io(&path))?;
+        for s in summary {
+            writeln!(
+                w,
+                "{},{},{},{:.6e},{:.6e},{:.6e},{:.6e},{:.4},{:.4},{:.4}",
+                s.integrator,
+                s.spp,
+                s.runs,
+                s.mse.0,
+                s.mse.1,
+                s.rel_mse.0,
+                s.rel_mse.1,
+                s.seconds.0,
+                s.seconds.1,
+                s.prepass_seconds
+            )
+            .map_err(io(&path))?;
+        }
+        Ok(())
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mean_and_standard_error() {
+        let (m, se) = mean_and_se(&[1.0, 2.0, 3.0, 4.0]);
+        assert!((m - 2.5).abs() < 1e-12);
+        // s² = 5/3, se = √(s²/4).
+        assert!((se - (5.0f64 / 12.0).sqrt()).abs() < 1e-12);
+        assert_eq!(mean_and_se(&[7.0]), (7.0, 0.0));
+    }
+
+    #[test]
+    fn summaries_group_by_integrator_and_spp() {
+        let run = |i: &str, spp, mse| Run {
+            integrator: i.into(),
+            spp,
+            seed: 0,
+            seconds: 1.0,
+            prepass_seconds: 0.0,
+            metrics: Metrics { mse, rel_mse: mse },
+        };
+        let s = summarise(&[run("a", 1, 2.0), run("a", 1, 4.0), run("b", 1, 1.0), run("a", 2, 1.0)]);
+        assert_eq!(s.len(), 3);
+        assert_eq!((s[0].integrator.as_str(), s[0].spp, s[0].runs), ("a", 1, 2));
+        assert!((s[0].mse.0 - 3.0).abs() < 1e-12);
+    }
+}
