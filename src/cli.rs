@@ -490,21 +490,17 @@ fn run_reference(args: &ReferenceArgs) -> Result<()> {
     args.backend.check_available()?;
     let scene = load_at(&args.scene, args.resolution)?;
     let hash = format!("{:016x}", scene.content_hash());
-    if !args.force && args.output.is_file() {
-        if let Ok((image, meta)) = film::read_exr(&args.output) {
-            if meta.get("scene_hash") == Some(hash.as_str())
+    let up_to_date = !args.force
+        && args.output.is_file()
+        && film::read_exr(&args.output).is_ok_and(|(image, meta)| {
+            meta.get("scene_hash") == Some(hash.as_str())
                 && image.spp == args.spp
                 && meta.get("integrator") == Some("path")
                 && image.variance.is_some()
-            {
-                println!(
-                    "{}: up to date ({} spp, scene {hash}); --force renders it again",
-                    args.output.display(),
-                    args.spp
-                );
-                return Ok(());
-            }
-        }
+        });
+    if up_to_date {
+        println!("{}: up to date ({} spp, scene {hash}); --force renders it again", args.output.display(), args.spp);
+        return Ok(());
     }
     film::check_writable(&args.output)?;
     let settings = RenderSettings {
