@@ -590,6 +590,7 @@ fn run_converge(args: &ConvergeArgs) -> Result<()> {
     }
     let summary = crate::converge::summarise(&runs);
     crate::converge::write_csv(&args.output, &runs, &summary)?;
+    crate::converge::plot(&args.output, &scene.name, &summary)?;
     println!(
         "{:<18} {:>5} {:>12} {:>10} {:>12} {:>9} {:>9}",
         "integrator", "spp", "MSE", "± s.e.", "relMSE", "seconds", "pre-pass"
@@ -600,6 +601,6 @@ fn run_converge(args: &ConvergeArgs) -> Result<()> {
             s.integrator, s.spp, s.mse.0, s.mse.1, s.rel_mse.0, s.seconds.0, s.prepass_seconds
         );
     }
-    println!("-> {}", args.output.join("converge.csv").display());
+    println!("-> {} (runs.csv, converge.csv, mse_vs_spp.png/svg, mse_vs_seconds.png/svg)", args.output.display());
     Ok(())
 }

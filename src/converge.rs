@@ -143,3 +143,37 @@ mod tests {
         assert!((s[0].mse.0 - 3.0).abs() < 1e-12);
     }
 }
+
+/// Draws `mse_vs_spp` (the paper's Fig. 1) and `mse_vs_seconds` (equal time, pre-pass
+/// included) into `dir`, each as PNG and SVG.
+pub fn plot(dir: &Path, scene: &str, summary: &[Summary]) -> Result<()> {
+    let mut names: Vec<&str> = Vec::new();
+    for s in summary {
+        if !names.contains(&s.integrator.as_str()) {
+            names.push(&s.integrator);
+        }
+    }
+    let series = |x: &dyn Fn(&Summary) -> f64| -> Vec<crate::plot::Series> {
+        names
+            .iter()
+            .map(|n| crate::plot::Series {
+                name: n.to_string(),
+                points: summary.iter().filter(|s| s.integrator == *n).map(|s| (x(s), s.mse.0, s.mse.1)).collect(),
+            })
+            .collect()
+    };
+    crate::plot::log_log(
+        &dir.join("mse_vs_spp"),
+        &format!("{scene}: MSE vs samples per pixel"),
+        "samples per pixel",
+        "MSE",
+        &series(&|s| s.spp as f64),
+    )?;
+    crate::plot::log_log(
+        &dir.join("mse_vs_seconds"),
+        &format!("{scene}: MSE vs render seconds"),
+        "seconds (photon pass included)",
+        "MSE",
+        &series(&|s| s.seconds.0),
+    )
+}

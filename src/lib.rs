@@ -16,6 +16,7 @@ pub mod film;
 pub mod geometry;
 pub mod integrator;
 pub mod photon;
+pub mod plot;
 pub mod render;
 pub mod sampler;
 pub mod scene;

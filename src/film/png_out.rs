@@ -20,7 +20,7 @@ pub fn write_png(path: &Path, image: &Image, exposure: f32) -> Result<()> {
 }
 
 /// Writes 8-bit RGB bytes as a PNG, atomically.
-pub(crate) fn write_rgb8(path: &Path, width: u32, height: u32, bytes: &[u8]) -> Result<()> {
+pub fn write_rgb8(path: &Path, width: u32, height: u32, bytes: &[u8]) -> Result<()> {
     let err = |e: png::EncodingError| Error::Image { path: path.to_path_buf(), message: e.to_string() };
     write_atomically(path, |w| {
         let mut enc = png::Encoder::new(w, width, height);
