@@ -114,36 +114,6 @@ pub fn write_csv(dir: &Path, runs: &[Run], summary: &[Summary]) -> Result<()> {
     })
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn mean_and_standard_error() {
-        let (m, se) = mean_and_se(&[1.0, 2.0, 3.0, 4.0]);
-        assert!((m - 2.5).abs() < 1e-12);
-        // s² = 5/3, se = √(s²/4).
-        assert!((se - (5.0f64 / 12.0).sqrt()).abs() < 1e-12);
-        assert_eq!(mean_and_se(&[7.0]), (7.0, 0.0));
-    }
-
-    #[test]
-    fn summaries_group_by_integrator_and_spp() {
-        let run = |i: &str, spp, mse| Run {
-            integrator: i.into(),
-            spp,
-            seed: 0,
-            seconds: 1.0,
-            prepass_seconds: 0.0,
-            metrics: Metrics { mse, rel_mse: mse },
-        };
-        let s = summarise(&[run("a", 1, 2.0), run("a", 1, 4.0), run("b", 1, 1.0), run("a", 2, 1.0)]);
-        assert_eq!(s.len(), 3);
-        assert_eq!((s[0].integrator.as_str(), s[0].spp, s[0].runs), ("a", 1, 2));
-        assert!((s[0].mse.0 - 3.0).abs() < 1e-12);
-    }
-}
-
 /// Draws `mse_vs_spp` (the paper's Fig. 1) and `mse_vs_seconds` (equal time, pre-pass
 /// included) into `dir`, each as PNG and SVG.
 pub fn plot(dir: &Path, scene: &str, summary: &[Summary]) -> Result<()> {
@@ -176,4 +146,34 @@ pub fn plot(dir: &Path, scene: &str, summary: &[Summary]) -> Result<()> {
         "MSE",
         &series(&|s| s.seconds.0),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mean_and_standard_error() {
+        let (m, se) = mean_and_se(&[1.0, 2.0, 3.0, 4.0]);
+        assert!((m - 2.5).abs() < 1e-12);
+        // s² = 5/3, se = √(s²/4).
+        assert!((se - (5.0f64 / 12.0).sqrt()).abs() < 1e-12);
+        assert_eq!(mean_and_se(&[7.0]), (7.0, 0.0));
+    }
+
+    #[test]
+    fn summaries_group_by_integrator_and_spp() {
+        let run = |i: &str, spp, mse| Run {
+            integrator: i.into(),
+            spp,
+            seed: 0,
+            seconds: 1.0,
+            prepass_seconds: 0.0,
+            metrics: Metrics { mse, rel_mse: mse },
+        };
+        let s = summarise(&[run("a", 1, 2.0), run("a", 1, 4.0), run("b", 1, 1.0), run("a", 2, 1.0)]);
+        assert_eq!(s.len(), 3);
+        assert_eq!((s[0].integrator.as_str(), s[0].spp, s[0].runs), ("a", 1, 2));
+        assert!((s[0].mse.0 - 3.0).abs() < 1e-12);
+    }
 }

@@ -67,8 +67,8 @@ where
         .bold_line_style(RGBColor(225, 225, 225))
         .x_labels(12)
         .y_labels(10)
-        .x_label_formatter(&|x| format!("{}", compact(*x)))
-        .y_label_formatter(&|y| format!("{}", compact(*y)))
+        .x_label_formatter(&|x| compact(*x))
+        .y_label_formatter(&|y| compact(*y))
         .draw()
         .map_err(err)?;
     for (k, s) in series.iter().enumerate() {
