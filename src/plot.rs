@@ -101,7 +101,7 @@ where
 
 /// A short axis label: integers as such, other values to three significant digits.
 fn compact(v: f64) -> String {
-    if v >= 1.0 && v < 1e5 && (v - v.round()).abs() < 1e-9 {
+    if (1.0..1e5).contains(&v) && (v - v.round()).abs() < 1e-9 {
         format!("{}", v.round() as i64)
     } else if (1e-2..1e5).contains(&v.abs()) {
         format!("{:.3}", v).trim_end_matches('0').trim_end_matches('.').to_string()
