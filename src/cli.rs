@@ -99,6 +99,17 @@ pub struct ConvergeArgs {
     /// First seed; run r uses seed + r.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Instead of the spp sweep: the seconds each integrator needs to reach this MSE (spp
+    /// doubled from 1, then log–log interpolation), mean ± s.e. over the runs.
+    #[arg(long)]
+    pub time_to_mse: Option<f64>,
+    /// Also render every integrator for this many seconds and write DIR/equal_time.png, the
+    /// images side by side with the spp each reached and its MSE.
+    #[arg(long)]
+    pub equal_time: Option<f64>,
+    /// Largest spp tried by --time-to-mse.
+    #[arg(long, default_value_t = 65536)]
+    pub max_spp: u32,
     #[command(flatten)]
     pub photon: PhotonArgs,
 }
@@ -557,6 +568,12 @@ fn run_converge(args: &ConvergeArgs) -> Result<()> {
     if ref_meta.get("scene_hash").is_some_and(|h| h != hash) {
         return Err(Error::InvalidOption(format!("{} was rendered from a different scene", args.reference.display())));
     }
+    if let Some(seconds) = args.equal_time {
+        equal_time_image(args, &scene, &reference, seconds)?;
+    }
+    if let Some(target) = args.time_to_mse {
+        return run_time_to_mse(args, &scene, &reference, target);
+    }
     let mut runs = Vec::new();
     for &integrator in &args.integrators {
         let name = integrator.to_possible_value().map_or("?".into(), |v| v.get_name().to_string());
@@ -602,5 +619,91 @@ fn run_converge(args: &ConvergeArgs) -> Result<()> {
         );
     }
     println!("-> {} (runs.csv, converge.csv, mse_vs_spp.png/svg, mse_vs_seconds.png/svg)", args.output.display());
+    Ok(())
+}
+
+fn run_time_to_mse(args: &ConvergeArgs, scene: &Scene, reference: &Image, target: f64) -> Result<()> {
+    if !(target.is_finite() && target > 0.0) {
+        return Err(Error::InvalidOption("--time-to-mse must be a positive MSE".into()));
+    }
+    let mut rows = Vec::new();
+    println!(
+        "{:<18} {:>10} {:>10} {:>9}  (target MSE {target:.4e}, {} runs)",
+        "integrator", "seconds", "± s.e.", "spp", args.runs
+    );
+    for &integrator in &args.integrators {
+        let name = integrator.to_possible_value().map_or("?".into(), |v| v.get_name().to_string());
+        let mut seconds = Vec::new();
+        let mut spps = Vec::new();
+        for r in 0..args.runs {
+            let seed = args.seed + r as u64;
+            let t = crate::converge::time_to_mse(
+                |spp| {
+                    let settings = RenderSettings {
+                        spp: Some(spp),
+                        time_limit: None,
+                        seed,
+                        threads: args.threads,
+                        tile_size: 32,
+                        progress: false,
+                    };
+                    let (image, stats, _) = render_scene(scene, integrator, &args.photon, args.backend, &settings)?;
+                    let m = film::metrics(&image, reference)?;
+                    eprintln!("{name} seed {seed} {spp} spp: MSE {:.4e} in {:.2} s", m.mse, stats.seconds);
+                    Ok((stats.seconds, m.mse))
+                },
+                target,
+                args.max_spp,
+            )?;
+            if !t.reached {
+                eprintln!("warning: {name} seed {seed} did not reach the target within {} spp", args.max_spp);
+            }
+            seconds.push(t.seconds);
+            spps.push(t.spp as f64);
+            rows.push((name.clone(), seed, t));
+        }
+        let (m, se) = crate::converge::mean_and_se(&seconds);
+        println!("{:<18} {:>10.3} {:>10.3} {:>9.0}", name, m, se, crate::converge::mean_and_se(&spps).0);
+    }
+    std::fs::create_dir_all(&args.output).map_err(|e| Error::io(&args.output, e))?;
+    let path = args.output.join("time_to_mse.csv");
+    film::write_atomically(&path, |w| {
+        use std::io::Write;
+        let io = |e| Error::io(&path, e);
+        writeln!(w, "integrator,seed,target_mse,seconds,spp,reached").map_err(io)?;
+        for (name, seed, t) in &rows {
+            writeln!(w, "{name},{seed},{target:e},{:.4},{},{}", t.seconds, t.spp, t.reached).map_err(io)?;
+        }
+        Ok(())
+    })?;
+    println!("-> {}", path.display());
+    Ok(())
+}
+
+fn equal_time_image(args: &ConvergeArgs, scene: &Scene, reference: &Image, seconds: f64) -> Result<()> {
+    if !(seconds.is_finite() && seconds > 0.0) {
+        return Err(Error::InvalidOption("--equal-time must be a positive number of seconds".into()));
+    }
+    let mut shots = Vec::new();
+    for &integrator in &args.integrators {
+        let name = integrator.to_possible_value().map_or("?".into(), |v| v.get_name().to_string());
+        let settings = RenderSettings {
+            spp: None,
+            time_limit: Some(seconds),
+            seed: args.seed,
+            threads: args.threads,
+            tile_size: 32,
+            progress: false,
+        };
+        let (image, stats, _) = render_scene(scene, integrator, &args.photon, args.backend, &settings)?;
+        let m = film::metrics(&image, reference)?;
+        println!("equal time {seconds} s: {name} {} spp, MSE {:.4e}, relMSE {:.4e}", stats.spp, m.mse, m.rel_mse);
+        shots.push((format!("{name}\n{} spp, MSE {:.2e}", stats.spp, m.mse), image));
+    }
+    std::fs::create_dir_all(&args.output).map_err(|e| Error::io(&args.output, e))?;
+    let path = args.output.join("equal_time.png");
+    let refs: Vec<(String, &Image)> = shots.iter().map(|(c, i)| (c.clone(), i)).collect();
+    crate::plot::side_by_side(&path, &refs)?;
+    println!("-> {}", path.display());
     Ok(())
 }

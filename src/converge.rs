@@ -148,9 +148,68 @@ pub fn plot(dir: &Path, scene: &str, summary: &[Summary]) -> Result<()> {
     )
 }
 
+/// How long one run took to reach a target MSE.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TimeToMse {
+    /// Seconds, interpolated log–log between the last render above the target and the first
+    /// at or below it (the first render's seconds if it is already below).
+    pub seconds: f64,
+    /// Samples per pixel of the first render at or below the target.
+    pub spp: u32,
+    /// False when `max_spp` was reached first (then `seconds` is that render's).
+    pub reached: bool,
+}
+
+/// Doubles the sample count from 1 (`render(spp)` returns seconds and MSE of an independent
+/// render) until the MSE is at most `target`, then interpolates `log seconds` against
+/// `log MSE` between the last two renders.
+pub fn time_to_mse(mut render: impl FnMut(u32) -> Result<(f64, f64)>, target: f64, max_spp: u32) -> Result<TimeToMse> {
+    let mut previous: Option<(f64, f64)> = None;
+    let mut spp = 1u32;
+    loop {
+        let (seconds, mse) = render(spp)?;
+        if mse <= target {
+            let seconds = match previous {
+                Some((s0, m0)) if m0 > mse && mse > 0.0 && s0 > 0.0 && seconds > 0.0 => {
+                    // Where the line through (ln m0, ln s0), (ln mse, ln s) meets ln target.
+                    let f = (target.ln() - m0.ln()) / (mse.ln() - m0.ln());
+                    (s0.ln() + f * (seconds.ln() - s0.ln())).exp()
+                }
+                _ => seconds,
+            };
+            return Ok(TimeToMse { seconds, spp, reached: true });
+        }
+        if spp >= max_spp {
+            return Ok(TimeToMse { seconds, spp, reached: false });
+        }
+        previous = Some((seconds, mse));
+        spp = (spp * 2).min(max_spp);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn time_to_mse_interpolates_log_log() {
+        // MSE = 100/spp, seconds = spp/10: the target 10 is reached at 10 spp = 1 s exactly,
+        // between the renders at 8 and 16 spp.
+        let mut calls = Vec::new();
+        let t = time_to_mse(
+            |spp| {
+                calls.push(spp);
+                Ok((spp as f64 / 10.0, 100.0 / spp as f64))
+            },
+            10.0,
+            1024,
+        )
+        .unwrap();
+        assert_eq!(calls, [1, 2, 4, 8, 16]);
+        assert!(t.reached && t.spp == 16 && (t.seconds - 1.0).abs() < 1e-9, "{t:?}");
+        let capped = time_to_mse(|spp| Ok((spp as f64, 1.0)), 0.5, 4).unwrap();
+        assert!(!capped.reached && capped.spp == 4);
+    }
 
     #[test]
     fn mean_and_standard_error() {

@@ -10,6 +10,12 @@ use std::path::Path;
 use std::sync::Once;
 
 static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+static REGISTER_FONT: Once = Once::new();
+
+fn register() {
+    // The bundled font is valid; if registering failed, text would be missing, not wrong.
+    let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
+}
 
 /// One line: points `(x, y)` with a standard error on y (drawn as a vertical bar).
 #[derive(Clone, Debug)]
@@ -112,11 +118,7 @@ fn compact(v: f64) -> String {
 
 /// Writes `stem.png` and `stem.svg`.
 pub fn log_log(stem: &Path, title: &str, x_label: &str, y_label: &str, series: &[Series]) -> Result<()> {
-    static REGISTER: Once = Once::new();
-    REGISTER.call_once(|| {
-        // The bundled font is valid; if registering failed, text would be missing, not wrong.
-        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
-    });
+    REGISTER_FONT.call_once(register);
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
@@ -130,4 +132,38 @@ pub fn log_log(stem: &Path, title: &str, x_label: &str, y_label: &str, series: &
         draw(&root, title, x_label, y_label, series)?;
     }
     crate::film::write_rgb8_png(&stem.with_extension("png"), SIZE.0, SIZE.1, &rgb)
+}
+
+/// Writes the images side by side, each under its caption (lines split at `\n`), as one PNG.
+pub fn side_by_side(path: &Path, images: &[(String, &crate::film::Image)]) -> Result<()> {
+    REGISTER_FONT.call_once(register);
+    let (w, h) = images.first().map_or((1, 1), |(_, i)| (i.width, i.height));
+    if images.iter().any(|(_, i)| (i.width, i.height) != (w, h)) {
+        return Err(Error::InvalidOption("side-by-side images must share one size".into()));
+    }
+    let lines = images.iter().map(|(c, _)| c.lines().count()).max().unwrap_or(1) as u32;
+    let header = 8 + 17 * lines;
+    let (width, height) = (w * images.len().max(1) as u32, h + header);
+    let mut rgb = vec![255u8; (width * height * 3) as usize];
+    for (k, (_, image)) in images.iter().enumerate() {
+        let src = crate::film::to_srgb8(image, 0.0);
+        for y in 0..h {
+            let dst = (((y + header) * width + k as u32 * w) * 3) as usize;
+            let row = (y * w * 3) as usize;
+            rgb[dst..dst + (w * 3) as usize].copy_from_slice(&src[row..row + (w * 3) as usize]);
+        }
+    }
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, (width, height)).into_drawing_area();
+        let err = |e: DrawingAreaErrorKind<_>| Error::InvalidOption(format!("plot: {e}"));
+        for (k, (caption, _)) in images.iter().enumerate() {
+            for (l, line) in caption.lines().enumerate() {
+                let at = (k as i32 * w as i32 + 6, 4 + 17 * l as i32);
+                root.draw(&Text::new(line.to_string(), at, ("sans-serif", 14).into_font().color(&BLACK)))
+                    .map_err(err)?;
+            }
+        }
+        root.present().map_err(err)?;
+    }
+    crate::film::write_rgb8_png(path, width, height, &rgb)
 }

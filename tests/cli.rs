@@ -310,6 +310,35 @@ fn reference_is_cached_and_converge_writes_csv() {
     assert!(csv.starts_with("integrator,spp,runs,mse"));
     assert_eq!(csv.lines().count(), 1 + 2 * 2, "{csv}");
     assert_eq!(std::fs::read_to_string(out.join("runs.csv")).unwrap().lines().count(), 1 + 2 * 2 * 2);
+    // Time to a target MSE (loose, so a few doublings reach it) and the equal-time image.
+    let ttm = zvidpt(&[
+        "converge",
+        &scene,
+        "--resolution",
+        "32x24",
+        "--reference",
+        s(&reference),
+        "--runs",
+        "1",
+        "--integrators",
+        "path,jensen",
+        "--time-to-mse",
+        "1000",
+        "--max-spp",
+        "64",
+        "--equal-time",
+        "0.05",
+        "-o",
+        s(&out),
+    ]);
+    assert!(ttm.status.success(), "{}", String::from_utf8_lossy(&ttm.stderr));
+    let csv = std::fs::read_to_string(out.join("time_to_mse.csv")).unwrap();
+    assert!(csv.starts_with("integrator,seed,target_mse,seconds,spp,reached") && csv.lines().count() == 3, "{csv}");
+    assert!(
+        out.join("equal_time.png").is_file()
+            && out.join("mse_vs_spp.png").is_file()
+            && out.join("mse_vs_seconds.svg").is_file()
+    );
     // A reference of another resolution is refused with one error line.
     let bad = zvidpt(&["converge", &scene, "--resolution", "16x12", "--reference", s(&reference), "-o", s(&out)]);
     let stderr = String::from_utf8_lossy(&bad.stderr);

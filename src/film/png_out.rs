@@ -8,15 +8,20 @@ fn srgb_encode(x: f32) -> f32 {
     if x <= 0.003_130_8 { 12.92 * x } else { 1.055 * x.powf(1.0 / 2.4) - 0.055 }
 }
 
-/// Writes an 8-bit sRGB PNG of `image` scaled by `2^exposure` (clamped, no tone curve).
-pub fn write_png(path: &Path, image: &Image, exposure: f32) -> Result<()> {
+/// 8-bit sRGB bytes of `image` scaled by `2^exposure` (clamped, no tone curve).
+#[must_use]
+pub fn to_srgb8(image: &Image, exposure: f32) -> Vec<u8> {
     let scale = exposure.exp2();
-    let bytes: Vec<u8> = image
+    image
         .pixels
         .iter()
         .flat_map(|p| p.map(|c| (srgb_encode((c * scale).clamp(0.0, 1.0)) * 255.0 + 0.5) as u8))
-        .collect();
-    write_rgb8(path, image.width, image.height, &bytes)
+        .collect()
+}
+
+/// Writes an 8-bit sRGB PNG of `image` scaled by `2^exposure` (clamped, no tone curve).
+pub fn write_png(path: &Path, image: &Image, exposure: f32) -> Result<()> {
+    write_rgb8(path, image.width, image.height, &to_srgb8(image, exposure))
 }
 
 /// Writes 8-bit RGB bytes as a PNG, atomically.
