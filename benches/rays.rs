@@ -1,4 +1,5 @@
-//! Rays per second for each backend (`cargo bench --features embree --bench rays`): coherent
+//! Rays per second for each backend (`cargo bench --bench rays`; the Embree cases are added by
+//! `--features embree`): coherent
 //! primary rays (camera rays in tile order), incoherent diffuse-bounce rays (cosine directions
 //! from the primary hits) and shadow rays (from the hits to points on a light), on
 //! `cornell-paper` and on a procedural 1.28M-triangle terrain; single-ray queries against
@@ -6,6 +7,7 @@
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use rayon::prelude::*;
 use std::time::Duration;
+#[cfg(feature = "embree")]
 use zvidpt::accel::embree::EmbreeAccel;
 use zvidpt::accel::{Accel, BvhAccel};
 use zvidpt::geometry::{Frame, Ray, Vec2, Vec3A, warp};
@@ -116,6 +118,7 @@ fn run_packets<A: Accel>(accel: &A, rays: &[Ray], t_max: Option<&[f32]>) -> usiz
 
 fn bench_scene(c: &mut Criterion, scene: &Scene) {
     let bvh = BvhAccel::build(scene);
+    #[cfg(feature = "embree")]
     let embree = EmbreeAccel::build(scene).expect("Embree builds the scene");
     let primary = primary_rays(scene);
     let (bounce, shadow, t_max) = secondary_rays(scene, &bvh, &primary);
@@ -129,8 +132,15 @@ fn bench_scene(c: &mut Criterion, scene: &Scene) {
             let id = |b: &str| BenchmarkId::new(format!("{kind}/{b}"), format!("{threads}t"));
             group.throughput(Throughput::Elements(rays.len() as u64));
             group.bench_function(id("bvh single"), |b| b.iter(|| pool.install(|| run_single(&bvh, rays, t))));
-            group.bench_function(id("embree single"), |b| b.iter(|| pool.install(|| run_single(&embree, rays, t))));
-            group.bench_function(id("embree packet8"), |b| b.iter(|| pool.install(|| run_packets(&embree, rays, t))));
+            // The trait's default batched methods (a loop): the batching overhead, for reference.
+            group.bench_function(id("bvh batch8"), |b| b.iter(|| pool.install(|| run_packets(&bvh, rays, t))));
+            #[cfg(feature = "embree")]
+            {
+                group.bench_function(id("embree single"), |b| b.iter(|| pool.install(|| run_single(&embree, rays, t))));
+                group.bench_function(id("embree packet8"), |b| {
+                    b.iter(|| pool.install(|| run_packets(&embree, rays, t)))
+                });
+            }
         }
     }
     group.finish();
