@@ -33,6 +33,10 @@ const INVALID_ID: u32 = u32::MAX;
 struct ErrorSlot(Mutex<Option<String>>);
 
 /// Embree calls this on any error; it must not unwind, so it only records the message.
+///
+/// # Safety
+/// Only Embree calls it, with `user` the `ErrorSlot` registered with the device and `message`
+/// null or a NUL-terminated string valid for the call.
 unsafe extern "C" fn record_error(user: *mut c_void, code: sys::RTCError, message: *const std::os::raw::c_char) {
     // SAFETY: `user` is the `ErrorSlot` registered with the device, which outlives the device
     // (it is dropped after `rtcReleaseDevice`); `message` is null or a NUL-terminated string
@@ -156,7 +160,6 @@ impl Drop for EmbreeAccel<'_> {
         // SAFETY: `raw` is a live scene owned by this struct, released once, before the device
         // (fields drop after this body) and before the index buffer it reads.
         unsafe { sys::rtcReleaseScene(self.raw.as_ptr()) };
-        let _ = &self.device;
     }
 }
 
