@@ -98,7 +98,8 @@ pub struct EmbreeAccel<'s> {
     raw: NonNull<sys::RTCSceneTy>,
     /// Kept alive for the geometry, which reads it.
     _indices: Vec<[u32; 3]>,
-    device: Device,
+    /// Owns the device; dropped (released) after the scene, as fields drop after `drop()`.
+    _device: Device,
     _scene: PhantomData<&'s Scene>,
 }
 
@@ -151,7 +152,7 @@ impl<'s> EmbreeAccel<'s> {
         };
         device.check("building the Embree scene")?;
         let raw = NonNull::new(raw).ok_or_else(|| Error::Backend("Embree returned no scene".into()))?;
-        Ok(Self { raw, _indices: indices, device, _scene: PhantomData })
+        Ok(Self { raw, _indices: indices, _device: device, _scene: PhantomData })
     }
 }
 
