@@ -211,6 +211,10 @@ pub struct PhotonArgs {
     /// §2); larger values mix in more cosine sampling and bound the path weights.
     #[arg(long, default_value_t = 0.1)]
     pub guide_floor: f32,
+    /// ZVIDPT's largest termination probability q (ALGORITHM.md §2: 0.95); must be below 1,
+    /// or the indirect term would be dropped.
+    #[arg(long, default_value_t = 0.95)]
+    pub q_max: f32,
     /// Precompute guide records after the photon pass (on) or query the photon map at every
     /// walk vertex (off, the paper's way; slower).
     #[arg(long, value_enum, default_value_t = Switch::On)]
@@ -229,6 +233,7 @@ impl PhotonArgs {
             guide: g.which,
             guide_floor: g.floor,
             guide_cache: Switch::On,
+            q_max: 0.95,
         }
     }
 
@@ -251,6 +256,9 @@ impl PhotonArgs {
         if !(self.guide_floor.is_finite() && self.guide_floor > 0.0) {
             return Err(Error::InvalidOption("--guide-floor must be a positive number".into()));
         }
+        if !(self.q_max >= 0.05 && self.q_max < 1.0) {
+            return Err(Error::InvalidOption("--q-max must lie in [0.05, 1)".into()));
+        }
         Ok(())
     }
 
@@ -266,6 +274,7 @@ impl PhotonArgs {
         meta.push("guide_floor", self.guide_floor);
         if matches!(integrator, IntegratorKind::ZvidptTerminal | IntegratorKind::ZvidptCollision) {
             meta.push("pixel_grid", format!("{}x{}", self.pixel_grid.rows, self.pixel_grid.cols));
+            meta.push("q_max", self.q_max);
             meta.push("guide", if self.guide == GuidePhotons::All { "all" } else { "indirect" });
         }
     }
@@ -332,7 +341,8 @@ impl WithAccel for RenderJob<'_> {
     fn run<A: Accel>(self, accel: &A) -> Self::Output {
         let a = self.photon;
         let guide = a.settings();
-        let zvidpt = |estimator| Zvidpt { pixel_grid: a.pixel_grid, ..Zvidpt::new(estimator, guide.clone()) };
+        let zvidpt =
+            |estimator| Zvidpt { pixel_grid: a.pixel_grid, q_max: a.q_max, ..Zvidpt::new(estimator, guide.clone()) };
         let (scene, s) = (self.scene, self.settings);
         let (image, stats) = match self.integrator {
             IntegratorKind::Path => render(scene, accel, &mut PathTracer::default(), s)?,
