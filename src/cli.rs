@@ -41,21 +41,14 @@ pub struct ReferenceArgs {
     /// Scene file, or a folder holding `scene.toml`.
     #[arg(default_value = "scenes/cornell-paper")]
     pub scene: PathBuf,
+    #[command(flatten)]
+    pub machine: MachineArgs,
     /// Samples per pixel.
     #[arg(long, default_value_t = 4096)]
     pub spp: u32,
     /// Output EXR (with a PNG beside it).
     #[arg(short, long, default_value = "reference.exr")]
     pub output: PathBuf,
-    /// Override the scene's resolution, as WIDTHxHEIGHT.
-    #[arg(long, value_parser = parse_resolution)]
-    pub resolution: Option<(u32, u32)>,
-    /// Ray-tracing backend.
-    #[arg(long, value_enum, default_value_t = BackendKind::Auto)]
-    pub backend: BackendKind,
-    /// Worker threads [default: one per core].
-    #[arg(long)]
-    pub threads: Option<usize>,
     /// Random seed (kept apart from the seeds `converge` uses).
     #[arg(long, default_value_t = 1_000_003)]
     pub seed: u64,
@@ -72,6 +65,8 @@ pub struct ConvergeArgs {
     /// Scene file, or a folder holding `scene.toml`.
     #[arg(default_value = "scenes/cornell-paper")]
     pub scene: PathBuf,
+    #[command(flatten)]
+    pub machine: MachineArgs,
     /// Integrators to compare, comma-separated.
     #[arg(long, value_enum, value_delimiter = ',', default_value = "path,jensen,zvidpt-collision,zvidpt-terminal")]
     pub integrators: Vec<IntegratorKind>,
@@ -87,15 +82,6 @@ pub struct ConvergeArgs {
     /// Output folder for runs.csv and converge.csv.
     #[arg(short, long, default_value = "converge")]
     pub output: PathBuf,
-    /// Override the scene's resolution (must match the reference's).
-    #[arg(long, value_parser = parse_resolution)]
-    pub resolution: Option<(u32, u32)>,
-    /// Ray-tracing backend.
-    #[arg(long, value_enum, default_value_t = BackendKind::Auto)]
-    pub backend: BackendKind,
-    /// Worker threads [default: one per core].
-    #[arg(long)]
-    pub threads: Option<usize>,
     /// First seed; run r uses seed + r.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -145,6 +131,8 @@ pub struct RenderArgs {
     /// Scene file, or a folder holding `scene.toml`.
     #[arg(default_value = "scenes/cornell-paper")]
     pub scene: PathBuf,
+    #[command(flatten)]
+    pub machine: MachineArgs,
     /// Output EXR (linear float RGB, per-pixel variance, render metadata).
     #[arg(short, long, default_value = "render.exr")]
     pub output: PathBuf,
@@ -168,24 +156,30 @@ pub struct RenderArgs {
     pub integrator: IntegratorKind,
     #[command(flatten)]
     pub photon: PhotonArgs,
-    /// Ray-tracing backend (auto: Embree when compiled in, otherwise bvh).
-    #[arg(long, value_enum, default_value_t = BackendKind::Auto)]
-    pub backend: BackendKind,
-    /// Worker threads [default: one per core].
-    #[arg(long)]
-    pub threads: Option<usize>,
     /// Random seed; the same seed, scene and flags give the same image bytes.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Override the scene's resolution, as WIDTHxHEIGHT (the view is kept).
-    #[arg(long, value_parser = parse_resolution)]
-    pub resolution: Option<(u32, u32)>,
     /// Tile side in pixels (does not change the image).
     #[arg(long, default_value_t = 32)]
     pub tile_size: u32,
     /// No progress bar.
     #[arg(short, long)]
     pub quiet: bool,
+}
+
+/// Where and how big: shared by `render`, `reference` and `converge`.
+#[derive(Clone, Debug, Args)]
+pub struct MachineArgs {
+    /// Override the scene's resolution, as WIDTHxHEIGHT (the view is kept; `converge` needs
+    /// the reference's).
+    #[arg(long, value_parser = parse_resolution)]
+    pub resolution: Option<(u32, u32)>,
+    /// Ray-tracing backend (auto: Embree when compiled in, otherwise bvh).
+    #[arg(long, value_enum, default_value_t = BackendKind::Auto)]
+    pub backend: BackendKind,
+    /// Worker threads [default: one per core].
+    #[arg(long)]
+    pub threads: Option<usize>,
 }
 
 /// Photon map and guide options of the guided integrators (jensen, zvidpt-*).
@@ -385,13 +379,13 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     {
         return Err(Error::InvalidOption(format!("--time must be a positive number of seconds, got {t}")));
     }
-    if args.threads == Some(0) {
+    if args.machine.threads == Some(0) {
         return Err(Error::InvalidOption("--threads must be at least 1".into()));
     }
     args.photon.check()?;
-    args.backend.check_available()?;
+    args.machine.backend.check_available()?;
     let mut scene = Scene::load(locate_scene(&args.scene))?;
-    if let Some((w, h)) = args.resolution {
+    if let Some((w, h)) = args.machine.resolution {
         scene.set_resolution(w, h)?;
     }
     // Warnings only once every option is known to be valid, so a failed run prints one line.
@@ -402,12 +396,12 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         spp: args.spp.or(if args.time.is_some() { None } else { Some(64) }),
         time_limit: args.time,
         seed: args.seed,
-        threads: args.threads,
+        threads: args.machine.threads,
         tile_size: args.tile_size,
         progress: !args.quiet,
     };
     let integrator = args.integrator;
-    let (image, stats, backend) = render_scene(&scene, integrator, &args.photon, args.backend, &settings)?;
+    let (image, stats, backend) = render_scene(&scene, integrator, &args.photon, args.machine.backend, &settings)?;
 
     let mut meta = Metadata::default();
     meta.push("scene", scene.path.display());
@@ -508,8 +502,8 @@ fn run_reference(args: &ReferenceArgs) -> Result<()> {
     if args.spp == 0 {
         return Err(Error::InvalidOption("--spp must be at least 1".into()));
     }
-    args.backend.check_available()?;
-    let scene = load_at(&args.scene, args.resolution)?;
+    args.machine.backend.check_available()?;
+    let scene = load_at(&args.scene, args.machine.resolution)?;
     let hash = format!("{:016x}", scene.content_hash());
     let up_to_date = !args.force
         && args.output.is_file()
@@ -528,12 +522,12 @@ fn run_reference(args: &ReferenceArgs) -> Result<()> {
         spp: Some(args.spp),
         time_limit: None,
         seed: args.seed,
-        threads: args.threads,
+        threads: args.machine.threads,
         tile_size: 32,
         progress: !args.quiet,
     };
     let photon = PhotonArgs::default_for_path();
-    let (image, stats, backend) = render_scene(&scene, IntegratorKind::Path, &photon, args.backend, &settings)?;
+    let (image, stats, backend) = render_scene(&scene, IntegratorKind::Path, &photon, args.machine.backend, &settings)?;
     let mut meta = Metadata::default();
     meta.push("scene", scene.path.display());
     meta.push("scene_hash", &hash);
@@ -565,8 +559,8 @@ fn run_converge(args: &ConvergeArgs) -> Result<()> {
         ));
     }
     args.photon.check()?;
-    args.backend.check_available()?;
-    let scene = load_at(&args.scene, args.resolution)?;
+    args.machine.backend.check_available()?;
+    let scene = load_at(&args.scene, args.machine.resolution)?;
     let (reference, ref_meta) = film::read_exr(&args.reference)?;
     if (reference.width, reference.height) != (scene.camera.width, scene.camera.height) {
         return Err(Error::InvalidOption(format!(
@@ -594,11 +588,12 @@ fn run_converge(args: &ConvergeArgs) -> Result<()> {
                     spp: Some(spp),
                     time_limit: None,
                     seed,
-                    threads: args.threads,
+                    threads: args.machine.threads,
                     tile_size: 32,
                     progress: false,
                 };
-                let (image, stats, _) = render_scene(&scene, integrator, &args.photon, args.backend, &settings)?;
+                let (image, stats, _) =
+                    render_scene(&scene, integrator, &args.photon, args.machine.backend, &settings)?;
                 let metrics = film::metrics(&image, &reference)?;
                 eprintln!(
                     "{name} {spp} spp seed {seed}: MSE {:.4e} relMSE {:.4e} in {:.2} s",
@@ -653,11 +648,12 @@ fn run_time_to_mse(args: &ConvergeArgs, scene: &Scene, reference: &Image, target
                         spp: Some(spp),
                         time_limit: None,
                         seed,
-                        threads: args.threads,
+                        threads: args.machine.threads,
                         tile_size: 32,
                         progress: false,
                     };
-                    let (image, stats, _) = render_scene(scene, integrator, &args.photon, args.backend, &settings)?;
+                    let (image, stats, _) =
+                        render_scene(scene, integrator, &args.photon, args.machine.backend, &settings)?;
                     let m = film::metrics(&image, reference)?;
                     eprintln!("{name} seed {seed} {spp} spp: MSE {:.4e} in {:.2} s", m.mse, stats.seconds);
                     Ok((stats.seconds, m.mse))
@@ -701,11 +697,11 @@ fn equal_time_image(args: &ConvergeArgs, scene: &Scene, reference: &Image, secon
             spp: None,
             time_limit: Some(seconds),
             seed: args.seed,
-            threads: args.threads,
+            threads: args.machine.threads,
             tile_size: 32,
             progress: false,
         };
-        let (image, stats, _) = render_scene(scene, integrator, &args.photon, args.backend, &settings)?;
+        let (image, stats, _) = render_scene(scene, integrator, &args.photon, args.machine.backend, &settings)?;
         let m = film::metrics(&image, reference)?;
         println!("equal time {seconds} s: {name} {} spp, MSE {:.4e}, relMSE {:.4e}", stats.spp, m.mse, m.rel_mse);
         shots.push((format!("{name}\n{} spp, MSE {:.2e}", stats.spp, m.mse), image));
