@@ -584,17 +584,7 @@ fn run_converge(args: &ConvergeArgs) -> Result<()> {
         for &spp in &args.spp {
             for r in 0..args.runs {
                 let seed = args.seed + r as u64;
-                let settings = RenderSettings {
-                    spp: Some(spp),
-                    time_limit: None,
-                    seed,
-                    threads: args.machine.threads,
-                    tile_size: 32,
-                    progress: false,
-                };
-                let (image, stats, _) =
-                    render_scene(&scene, integrator, &args.photon, args.machine.backend, &settings)?;
-                let metrics = film::metrics(&image, &reference)?;
+                let (stats, metrics) = measure(args, &scene, &reference, integrator, spp, seed)?;
                 eprintln!(
                     "{name} {spp} spp seed {seed}: MSE {:.4e} relMSE {:.4e} in {:.2} s",
                     metrics.mse, metrics.rel_mse, stats.seconds
@@ -627,6 +617,28 @@ fn run_converge(args: &ConvergeArgs) -> Result<()> {
     Ok(())
 }
 
+/// One convergence point: `integrator` at `spp` with `seed`, and its error against `reference`.
+fn measure(
+    args: &ConvergeArgs,
+    scene: &Scene,
+    reference: &Image,
+    integrator: IntegratorKind,
+    spp: u32,
+    seed: u64,
+) -> Result<(RenderStats, crate::film::Metrics)> {
+    let settings = RenderSettings {
+        spp: Some(spp),
+        time_limit: None,
+        seed,
+        threads: args.machine.threads,
+        tile_size: 32,
+        progress: false,
+    };
+    let (image, stats, _) = render_scene(scene, integrator, &args.photon, args.machine.backend, &settings)?;
+    let metrics = film::metrics(&image, reference)?;
+    Ok((stats, metrics))
+}
+
 fn run_time_to_mse(args: &ConvergeArgs, scene: &Scene, reference: &Image, target: f64) -> Result<()> {
     if !(target.is_finite() && target > 0.0) {
         return Err(Error::InvalidOption("--time-to-mse must be a positive MSE".into()));
@@ -644,17 +656,7 @@ fn run_time_to_mse(args: &ConvergeArgs, scene: &Scene, reference: &Image, target
             let seed = args.seed + r as u64;
             let t = crate::converge::time_to_mse(
                 |spp| {
-                    let settings = RenderSettings {
-                        spp: Some(spp),
-                        time_limit: None,
-                        seed,
-                        threads: args.machine.threads,
-                        tile_size: 32,
-                        progress: false,
-                    };
-                    let (image, stats, _) =
-                        render_scene(scene, integrator, &args.photon, args.machine.backend, &settings)?;
-                    let m = film::metrics(&image, reference)?;
+                    let (stats, m) = measure(args, scene, reference, integrator, spp, seed)?;
                     eprintln!("{name} seed {seed} {spp} spp: MSE {:.4e} in {:.2} s", m.mse, stats.seconds);
                     Ok((stats.seconds, m.mse))
                 },
