@@ -4,10 +4,35 @@ use crate::film::{self, Image, Metadata};
 use crate::integrator::{Estimator, GuideSettings, Jensen, MAX_SUBPIXELS, PathTracer, Zvidpt};
 use crate::photon::{GridShape, GuidePhotons, MAX_GUIDE_CELLS};
 use crate::render::{RenderSettings, RenderStats, render};
-use crate::scene::Scene;
+use crate::scene::{LightSampling, Scene};
 use crate::{Error, Result};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use std::path::{Path, PathBuf};
+
+/// `println!` that returns an error instead of panicking when standard output is closed
+/// (`zvidpt diff … | head -1`); `main` exits quietly on a broken pipe.
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        writeln!(std::io::stdout().lock(), $($arg)*).map_err(|e| Error::io("standard output", e))?
+    }};
+}
+
+/// `print!` without the newline, as [`out!`].
+macro_rules! out_part {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        write!(std::io::stdout().lock(), $($arg)*).map_err(|e| Error::io("standard output", e))?
+    }};
+}
+
+/// `eprintln!` for warnings and progress lines, which are dropped if standard error is closed.
+macro_rules! warn {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr().lock(), $($arg)*);
+    }};
+}
 
 #[derive(Debug, Parser)]
 #[command(
@@ -182,9 +207,15 @@ pub struct MachineArgs {
     pub threads: Option<usize>,
 }
 
-/// Photon map and guide options of the guided integrators (jensen, zvidpt-*).
+/// Estimator options: light sampling (every integrator), then the photon map and guides of
+/// the guided integrators (jensen, zvidpt-*).
 #[derive(Clone, Debug, Args)]
 pub struct PhotonArgs {
+    /// How next event estimation picks a point on an emitter: a uniform point on its area
+    /// (ALGORITHM.md §3) or a uniform direction in its solid angle (bounded weights beside a
+    /// light; the estimate is the same, the noise lower).
+    #[arg(long, value_enum, default_value_t = LightSampling::SolidAngle)]
+    pub light_sampling: LightSampling,
     /// Photons stored by the photon pass (jensen, zvidpt-*; the paper used 6891).
     #[arg(long, default_value_t = 6891)]
     pub photons: usize,
@@ -220,6 +251,7 @@ impl PhotonArgs {
     fn default_for_path() -> Self {
         let g = GuideSettings::default();
         Self {
+            light_sampling: LightSampling::default(),
             photons: g.photons,
             knn: g.knn,
             guide_grid: g.grid,
@@ -258,6 +290,10 @@ impl PhotonArgs {
 
     /// Metadata describing the options that shaped `integrator`'s image.
     fn describe(&self, integrator: IntegratorKind, meta: &mut Metadata) {
+        meta.push(
+            "light_sampling",
+            self.light_sampling.to_possible_value().map_or("?".into(), |v| v.get_name().to_string()),
+        );
         if integrator == IntegratorKind::Path {
             return;
         }
@@ -283,6 +319,10 @@ pub struct DiffArgs {
     /// Write a false-colour PNG of per-pixel relative squared error.
     #[arg(long)]
     pub error_map: Option<PathBuf>,
+    /// Also print the error of N horizontal bands of rows (top first), each with its share of
+    /// the whole image's squared error.
+    #[arg(long, value_name = "N")]
+    pub bands: Option<u32>,
 }
 
 fn parse_guide_grid(s: &str) -> std::result::Result<GridShape, String> {
@@ -390,7 +430,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     }
     // Warnings only once every option is known to be valid, so a failed run prints one line.
     for w in &scene.warnings {
-        eprintln!("warning: {w}");
+        warn!("warning: {w}");
     }
     let settings = RenderSettings {
         spp: args.spp.or(if args.time.is_some() { None } else { Some(64) }),
@@ -399,6 +439,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         threads: args.machine.threads,
         tile_size: args.tile_size,
         progress: !args.quiet,
+        light_sampling: args.photon.light_sampling,
     };
     let integrator = args.integrator;
     let (image, stats, backend) = render_scene(&scene, integrator, &args.photon, args.machine.backend, &settings)?;
@@ -423,12 +464,12 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         film::write_png(p, &image, args.exposure)?;
     }
     if let Some(p) = &stats.prepass {
-        println!("pre-pass: {p}");
+        out!("pre-pass: {p}");
     }
     if stats.non_finite > 0 {
-        eprintln!("warning: {} samples were NaN or infinite and were dropped", stats.non_finite);
+        warn!("warning: {} samples were NaN or infinite and were dropped", stats.non_finite);
     }
-    println!(
+    out!(
         "{} {}x{}, {} spp, {:.2} s{}, {:.2} M samples/s, {:.2} M rays/s ({}, {}, {} threads) -> {}{}",
         scene.name,
         image.width,
@@ -454,14 +495,33 @@ fn run_diff(args: &DiffArgs) -> Result<()> {
     if let Some(p) = &args.error_map {
         film::error_map_png(p, &image, &reference)?;
     }
-    println!("MSE {:.6e}  relMSE {:.6e}", m.mse, m.rel_mse);
+    out!("MSE {:.6e}  relMSE {:.6e}", m.mse, m.rel_mse);
+    if let Some(n) = args.bands {
+        if n == 0 || n > image.height {
+            return Err(Error::InvalidOption(format!("--bands must lie in 1..={} (the image's rows)", image.height)));
+        }
+        for k in 0..n {
+            let rows = k * image.height / n..(k + 1) * image.height / n;
+            let b = film::metrics_of_rows(&image, &reference, rows.clone())?;
+            let share =
+                b.mse * f64::from(rows.end - rows.start) / (m.mse * f64::from(image.height)).max(f64::MIN_POSITIVE);
+            out!(
+                "rows {:>4}..{:<4} MSE {:.4e}  relMSE {:.4e}  share {:5.1}%",
+                rows.start,
+                rows.end,
+                b.mse,
+                b.rel_mse,
+                100.0 * share
+            );
+        }
+    }
     Ok(())
 }
 
 fn run_info(args: &InfoArgs) -> Result<()> {
     let (image, meta) = film::read_exr(&args.image)?;
     let m = image.mean();
-    print!(
+    out_part!(
         "{}: {}x{}, mean RGB ({:.5}, {:.5}, {:.5})",
         args.image.display(),
         image.width,
@@ -476,13 +536,13 @@ fn run_info(args: &InfoArgs) -> Result<()> {
             let n = v.len() as f64;
             let se = [0, 1, 2].map(|c| (v.iter().map(|p| p[c] as f64).sum::<f64>() / spp as f64).sqrt() / n);
             let mean_var = [0, 1, 2].map(|c| v.iter().map(|p| p[c] as f64).sum::<f64>() / n);
-            println!(" ± ({:.5}, {:.5}, {:.5}) (1 s.e.)", se[0], se[1], se[2]);
-            println!("  mean per-sample variance ({:.4e}, {:.4e}, {:.4e})", mean_var[0], mean_var[1], mean_var[2]);
+            out!(" ± ({:.5}, {:.5}, {:.5}) (1 s.e.)", se[0], se[1], se[2]);
+            out!("  mean per-sample variance ({:.4e}, {:.4e}, {:.4e})", mean_var[0], mean_var[1], mean_var[2]);
         }
-        _ => println!(),
+        _ => out!(),
     }
     for (k, v) in &meta.entries {
-        println!("  {k} = {v}");
+        out!("  {k} = {v}");
     }
     Ok(())
 }
@@ -493,7 +553,7 @@ fn load_at(scene: &Path, resolution: Option<(u32, u32)>) -> Result<Scene> {
         scene.set_resolution(w, h)?;
     }
     for w in &scene.warnings {
-        eprintln!("warning: {w}");
+        warn!("warning: {w}");
     }
     Ok(scene)
 }
@@ -514,7 +574,7 @@ fn run_reference(args: &ReferenceArgs) -> Result<()> {
                 && image.variance.is_some()
         });
     if up_to_date {
-        println!("{}: up to date ({} spp, scene {hash}); --force renders it again", args.output.display(), args.spp);
+        out!("{}: up to date ({} spp, scene {hash}); --force renders it again", args.output.display(), args.spp);
         return Ok(());
     }
     film::check_writable(&args.output)?;
@@ -525,6 +585,7 @@ fn run_reference(args: &ReferenceArgs) -> Result<()> {
         threads: args.machine.threads,
         tile_size: 32,
         progress: !args.quiet,
+        light_sampling: LightSampling::default(),
     };
     let photon = PhotonArgs::default_for_path();
     let (image, stats, backend) = render_scene(&scene, IntegratorKind::Path, &photon, args.machine.backend, &settings)?;
@@ -532,6 +593,7 @@ fn run_reference(args: &ReferenceArgs) -> Result<()> {
     meta.push("scene", scene.path.display());
     meta.push("scene_hash", &hash);
     meta.push("integrator", "path");
+    photon.describe(IntegratorKind::Path, &mut meta);
     meta.push("backend", backend);
     meta.push("seed", args.seed);
     meta.push("seconds", format!("{:.3}", stats.seconds));
@@ -539,7 +601,7 @@ fn run_reference(args: &ReferenceArgs) -> Result<()> {
     meta.push("version", crate::VERSION);
     film::write_exr(&args.output, &image, &meta)?;
     film::write_png(&args.output.with_extension("png"), &image, 0.0)?;
-    println!(
+    out!(
         "{}: reference {}x{}, {} spp, {:.1} s ({}, {} threads)",
         args.output.display(),
         image.width,
@@ -585,7 +647,7 @@ fn run_converge(args: &ConvergeArgs) -> Result<()> {
             for r in 0..args.runs {
                 let seed = args.seed + r as u64;
                 let (stats, metrics) = measure(args, &scene, &reference, integrator, spp, seed)?;
-                eprintln!(
+                warn!(
                     "{name} {spp} spp seed {seed}: MSE {:.4e} relMSE {:.4e} in {:.2} s",
                     metrics.mse, metrics.rel_mse, stats.seconds
                 );
@@ -603,17 +665,29 @@ fn run_converge(args: &ConvergeArgs) -> Result<()> {
     let summary = crate::converge::summarise(&runs);
     crate::converge::write_csv(&args.output, &runs, &summary)?;
     crate::converge::plot(&args.output, &scene.name, &summary)?;
-    println!(
+    out!(
         "{:<18} {:>5} {:>12} {:>10} {:>12} {:>9} {:>9}",
-        "integrator", "spp", "MSE", "± s.e.", "relMSE", "seconds", "pre-pass"
+        "integrator",
+        "spp",
+        "MSE",
+        "± s.e.",
+        "relMSE",
+        "seconds",
+        "pre-pass"
     );
     for s in &summary {
-        println!(
+        out!(
             "{:<18} {:>5} {:>12.4e} {:>10.2e} {:>12.4e} {:>9.3} {:>9.3}",
-            s.integrator, s.spp, s.mse.0, s.mse.1, s.rel_mse.0, s.seconds.0, s.prepass_seconds
+            s.integrator,
+            s.spp,
+            s.mse.0,
+            s.mse.1,
+            s.rel_mse.0,
+            s.seconds.0,
+            s.prepass_seconds
         );
     }
-    println!("-> {} (runs.csv, converge.csv, mse_vs_spp.png/svg, mse_vs_seconds.png/svg)", args.output.display());
+    out!("-> {} (runs.csv, converge.csv, mse_vs_spp.png/svg, mse_vs_seconds.png/svg)", args.output.display());
     Ok(())
 }
 
@@ -633,6 +707,7 @@ fn measure(
         threads: args.machine.threads,
         tile_size: 32,
         progress: false,
+        light_sampling: args.photon.light_sampling,
     };
     let (image, stats, _) = render_scene(scene, integrator, &args.photon, args.machine.backend, &settings)?;
     let metrics = film::metrics(&image, reference)?;
@@ -644,9 +719,13 @@ fn run_time_to_mse(args: &ConvergeArgs, scene: &Scene, reference: &Image, target
         return Err(Error::InvalidOption("--time-to-mse must be a positive MSE".into()));
     }
     let mut rows = Vec::new();
-    println!(
+    out!(
         "{:<18} {:>10} {:>10} {:>9}  (target MSE {target:.4e}, {} runs)",
-        "integrator", "seconds", "± s.e.", "spp", args.runs
+        "integrator",
+        "seconds",
+        "± s.e.",
+        "spp",
+        args.runs
     );
     for &integrator in &args.integrators {
         let name = integrator.to_possible_value().map_or("?".into(), |v| v.get_name().to_string());
@@ -657,21 +736,21 @@ fn run_time_to_mse(args: &ConvergeArgs, scene: &Scene, reference: &Image, target
             let t = crate::converge::time_to_mse(
                 |spp| {
                     let (stats, m) = measure(args, scene, reference, integrator, spp, seed)?;
-                    eprintln!("{name} seed {seed} {spp} spp: MSE {:.4e} in {:.2} s", m.mse, stats.seconds);
+                    warn!("{name} seed {seed} {spp} spp: MSE {:.4e} in {:.2} s", m.mse, stats.seconds);
                     Ok((stats.seconds, m.mse))
                 },
                 target,
                 args.max_spp,
             )?;
             if !t.reached {
-                eprintln!("warning: {name} seed {seed} did not reach the target within {} spp", args.max_spp);
+                warn!("warning: {name} seed {seed} did not reach the target within {} spp", args.max_spp);
             }
             seconds.push(t.seconds);
             spps.push(t.spp as f64);
             rows.push((name.clone(), seed, t));
         }
         let (m, se) = crate::converge::mean_and_se(&seconds);
-        println!("{:<18} {:>10.3} {:>10.3} {:>9.0}", name, m, se, crate::converge::mean_and_se(&spps).0);
+        out!("{:<18} {:>10.3} {:>10.3} {:>9.0}", name, m, se, crate::converge::mean_and_se(&spps).0);
     }
     std::fs::create_dir_all(&args.output).map_err(|e| Error::io(&args.output, e))?;
     let path = args.output.join("time_to_mse.csv");
@@ -684,7 +763,7 @@ fn run_time_to_mse(args: &ConvergeArgs, scene: &Scene, reference: &Image, target
         }
         Ok(())
     })?;
-    println!("-> {}", path.display());
+    out!("-> {}", path.display());
     Ok(())
 }
 
@@ -702,16 +781,17 @@ fn equal_time_image(args: &ConvergeArgs, scene: &Scene, reference: &Image, secon
             threads: args.machine.threads,
             tile_size: 32,
             progress: false,
+            light_sampling: args.photon.light_sampling,
         };
         let (image, stats, _) = render_scene(scene, integrator, &args.photon, args.machine.backend, &settings)?;
         let m = film::metrics(&image, reference)?;
-        println!("equal time {seconds} s: {name} {} spp, MSE {:.4e}, relMSE {:.4e}", stats.spp, m.mse, m.rel_mse);
+        out!("equal time {seconds} s: {name} {} spp, MSE {:.4e}, relMSE {:.4e}", stats.spp, m.mse, m.rel_mse);
         shots.push((format!("{name}\n{} spp, MSE {:.2e}", stats.spp, m.mse), image));
     }
     std::fs::create_dir_all(&args.output).map_err(|e| Error::io(&args.output, e))?;
     let path = args.output.join("equal_time.png");
     let refs: Vec<(String, &Image)> = shots.iter().map(|(c, i)| (c.clone(), i)).collect();
     crate::plot::side_by_side(&path, &refs)?;
-    println!("-> {}", path.display());
+    out!("-> {}", path.display());
     Ok(())
 }

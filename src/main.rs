@@ -18,6 +18,9 @@ fn main() {
         }
     };
     if let Err(e) = zvidpt::cli::run(cli) {
+        if e.is_broken_pipe() {
+            return;
+        }
         eprintln!("error: {e}");
         std::process::exit(1);
     }

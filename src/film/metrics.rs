@@ -24,16 +24,23 @@ fn same_size(a: &Image, b: &Image) -> Result<()> {
 
 /// MSE and relMSE of `image` against `reference`.
 pub fn metrics(image: &Image, reference: &Image) -> Result<Metrics> {
+    metrics_of_rows(image, reference, 0..image.height)
+}
+
+/// MSE and relMSE over the pixel rows `rows` only (`zvidpt diff --bands`: where the error is).
+pub fn metrics_of_rows(image: &Image, reference: &Image, rows: std::ops::Range<u32>) -> Result<Metrics> {
     same_size(image, reference)?;
+    let w = image.width as usize;
+    let span = rows.start.min(image.height) as usize * w..rows.end.min(image.height) as usize * w;
+    let n = (span.len() * 3).max(1) as f64;
     let (mut se, mut rel) = (0.0f64, 0.0f64);
-    for (a, b) in image.pixels.iter().zip(&reference.pixels) {
+    for (a, b) in image.pixels[span.clone()].iter().zip(&reference.pixels[span]) {
         for c in 0..3 {
             let d = (a[c] as f64 - b[c] as f64).powi(2);
             se += d;
             rel += d / ((b[c] as f64).powi(2) + 0.01);
         }
     }
-    let n = (image.pixels.len() * 3).max(1) as f64;
     Ok(Metrics { mse: se / n, rel_mse: rel / n })
 }
 

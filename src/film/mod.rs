@@ -7,7 +7,7 @@ mod png_out;
 
 pub use atomic::{check_writable, write_atomically};
 pub use exr_io::{read_exr, write_exr};
-pub use metrics::{Metrics, error_map_png, metrics};
+pub use metrics::{Metrics, error_map_png, metrics, metrics_of_rows};
 pub use png_out::write_rgb8 as write_rgb8_png;
 pub use png_out::{to_srgb8, write_png};
 

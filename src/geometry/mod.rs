@@ -2,6 +2,7 @@
 mod frame;
 mod offset;
 mod ray;
+pub mod spherical;
 mod triangle;
 pub mod warp;
 

@@ -14,12 +14,13 @@ pub use zvidpt::{Estimator, MAX_SUBPIXELS, Zvidpt};
 use crate::accel::Accel;
 use crate::geometry::{Ray, UVec2, Vec3A, offset_ray_origin};
 use crate::sampler::SampleStream;
-use crate::scene::{Scene, SurfaceInteraction};
+use crate::scene::{LightSampling, Scene, SurfaceInteraction};
 
 /// What an integrator sees while rendering.
 pub struct RenderContext<'a, A: Accel> {
     pub scene: &'a Scene,
     pub accel: &'a A,
+    pub light_sampling: LightSampling,
 }
 
 /// Per-tile tallies and scratch memory, owned by the tile being rendered: no shared counters
@@ -66,8 +67,9 @@ pub trait Integrator: Sync + Send {
 }
 
 /// One next-event-estimation sample of direct light at `si` (ALGORITHM.md §3, `L̂1`): an
-/// emitter triangle by power, a uniform point on it, one shadow ray. Always draws three
-/// dimensions so that the stream stays aligned whatever happens.
+/// emitter triangle by power, a point on it by `ctx.light_sampling` (area is ALGORITHM.md's
+/// choice; solid angle is the default, see [`LightSampling`]), one shadow ray. Always draws
+/// three dimensions so that the stream stays aligned whatever happens.
 #[inline]
 pub fn direct_light<A: Accel>(
     ctx: &RenderContext<A>,
@@ -77,16 +79,14 @@ pub fn direct_light<A: Accel>(
 ) -> Vec3A {
     let u_pick = rng.next_f32();
     let u_point = rng.next_2d();
-    let Some(light) = ctx.scene.sample_emitter(u_pick, u_point) else {
+    let Some(light) = ctx.scene.sample_emitter_from(si.p, ctx.light_sampling, u_pick, u_point) else {
         return Vec3A::ZERO;
     };
     let to_light = light.p - si.p;
-    let dist2 = to_light.length_squared();
-    let wi = to_light / dist2.sqrt();
+    let wi = to_light.normalize_or_zero();
     let cos_x = si.n.dot(wi);
-    let cos_y = -light.ng.dot(wi);
-    // Emitters are one-sided and surfaces reflect only on the side they are seen from.
-    if cos_x <= 0.0 || cos_y <= 0.0 || dist2.is_nan() || dist2 <= 0.0 {
+    // Surfaces reflect only on the side they are seen from.
+    if cos_x <= 0.0 {
         return Vec3A::ZERO;
     }
     let origin = offset_ray_origin(si.p, si.p_err, si.ng, wi);
@@ -97,5 +97,5 @@ pub fn direct_light<A: Accel>(
     if ctx.accel.occluded(&Ray::new(origin, span / len), len * (1.0 - 1e-4)) {
         return Vec3A::ZERO;
     }
-    si.material.brdf() * light.emission * (cos_x * cos_y / (dist2 * light.pdf_area))
+    si.material.brdf() * light.emission * (cos_x * light.inv_pdf)
 }

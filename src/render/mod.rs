@@ -6,7 +6,7 @@ use crate::film::Image;
 use crate::geometry::{UVec2, Vec3A};
 use crate::integrator::{Integrator, RenderContext, Scratch};
 use crate::sampler::SampleStream;
-use crate::scene::Scene;
+use crate::scene::{LightSampling, Scene};
 use crate::{Error, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
@@ -27,11 +27,21 @@ pub struct RenderSettings {
     pub tile_size: u32,
     /// Show a progress bar on stderr (only when it is a terminal).
     pub progress: bool,
+    /// How next event estimation picks points on emitters (every integrator).
+    pub light_sampling: LightSampling,
 }
 
 impl Default for RenderSettings {
     fn default() -> Self {
-        Self { spp: Some(16), time_limit: None, seed: 0, threads: None, tile_size: 32, progress: false }
+        Self {
+            spp: Some(16),
+            time_limit: None,
+            seed: 0,
+            threads: None,
+            tile_size: 32,
+            progress: false,
+            light_sampling: LightSampling::default(),
+        }
     }
 }
 
@@ -165,7 +175,7 @@ fn render_in_pool<A: Accel, I: Integrator>(
     threads: usize,
 ) -> Result<(Image, RenderStats)> {
     let (width, height) = (scene.camera.width, scene.camera.height);
-    let ctx = RenderContext { scene, accel };
+    let ctx = RenderContext { scene, accel, light_sampling: settings.light_sampling };
     let start = Instant::now();
     let prepass = integrator.prepare(&ctx, settings.seed)?;
     let prepass_seconds = start.elapsed().as_secs_f64();

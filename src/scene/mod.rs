@@ -6,6 +6,7 @@ mod load;
 
 pub use camera::Camera;
 
+use crate::geometry::spherical::{self, SphericalTriangle};
 use crate::geometry::{Hit, Ray, Vec2, Vec3A, barycentric_error, luminance, offset_ray_origin, warp};
 use std::f32::consts::PI;
 use std::path::PathBuf;
@@ -89,6 +90,31 @@ impl SurfaceInteraction {
     pub fn spawn_ray(&self, dir: Vec3A) -> Ray {
         Ray::new(offset_ray_origin(self.p, self.p_err, self.ng, dir), dir)
     }
+}
+
+/// How next event estimation picks a point on the chosen emitter triangle.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum LightSampling {
+    /// A uniform point on the triangle's area (ALGORITHM.md §3).
+    Area,
+    /// A uniform direction in the solid angle the triangle subtends (Arvo 1995), falling back
+    /// to area below [`MIN_SOLID_ANGLE`]. Bounded weights next to an emitter, where area
+    /// sampling's `cosθx·cosθy/d²` is unbounded.
+    #[default]
+    SolidAngle,
+}
+
+/// A point on an emitter chosen for one shading point, with the inverse of its density with
+/// respect to solid angle at that point.
+#[derive(Clone, Copy, Debug)]
+pub struct DirectSample {
+    pub p: Vec3A,
+    pub p_err: Vec3A,
+    pub ng: Vec3A,
+    pub emission: Vec3A,
+    /// `1/pdf(ω)` in steradians: `cosθy/(d²·pdf_area)` for area sampling, `Ω/P(triangle)` for
+    /// solid-angle sampling.
+    pub inv_pdf: f32,
 }
 
 /// One sample of a point on an emitter, for next event estimation.
@@ -238,5 +264,154 @@ impl Scene {
             emission: self.material_of(prim).emission,
             pdf_area: pmf / self.emitters.areas[i],
         })
+    }
+
+    /// A point on an emitter for next event estimation at `x`: the triangle by power, the
+    /// point by `strategy`. `None` when the chosen triangle cannot light `x` (`x` behind its
+    /// emitting side) or nothing emits.
+    #[must_use]
+    pub fn sample_emitter_from(
+        &self,
+        x: Vec3A,
+        strategy: LightSampling,
+        u_pick: f32,
+        u_point: Vec2,
+    ) -> Option<DirectSample> {
+        let choice = self.emitters.choice.as_ref()?;
+        let (i, pmf) = choice.sample(u_pick);
+        let prim = self.emitters.prims[i];
+        let v = &self.triangles[prim as usize];
+        let ng = self.normals[prim as usize];
+        // One-sided emitters: nothing reaches a point behind (or in) the emitting plane.
+        if (x - v[0]).dot(ng) <= 0.0 {
+            return None;
+        }
+        let emission = self.material_of(prim).emission;
+        let spherical = match strategy {
+            LightSampling::Area => None,
+            LightSampling::SolidAngle => {
+                SphericalTriangle::new(x, v).filter(|st| st.solid_angle() >= spherical::MIN_SOLID_ANGLE)
+            }
+        };
+        if let Some(st) = spherical {
+            let w = st.sample(u_point);
+            // Where the sampled direction meets the triangle, as barycentrics (clamped into the
+            // triangle against rounding) so that the point carries the usual error bound.
+            let b = barycentrics_along(x, w, v)?;
+            return Some(DirectSample {
+                p: v[0] * b[0] + v[1] * b[1] + v[2] * b[2],
+                p_err: barycentric_error(b, v),
+                ng,
+                emission,
+                inv_pdf: (st.solid_angle() / f64::from(pmf)) as f32,
+            });
+        }
+        let b = warp::uniform_triangle(u_point);
+        let p = v[0] * b[0] + v[1] * b[1] + v[2] * b[2];
+        let to = p - x;
+        let dist2 = to.length_squared();
+        let cos_y = -ng.dot(to) / dist2.sqrt();
+        let inv_pdf = cos_y * self.emitters.areas[i] / (dist2 * pmf);
+        (inv_pdf.is_finite() && inv_pdf > 0.0).then(|| DirectSample {
+            p,
+            p_err: barycentric_error(b, v),
+            ng,
+            emission,
+            inv_pdf,
+        })
+    }
+}
+
+/// Barycentrics of the point where the ray from `x` along `w` meets the plane of `v`, clamped
+/// into the triangle; `None` if the ray is parallel to the plane.
+fn barycentrics_along(x: Vec3A, w: Vec3A, v: &[Vec3A; 3]) -> Option<[f32; 3]> {
+    let (x, w) = (x.as_dvec3(), w.as_dvec3());
+    let [v0, v1, v2] = v.map(|p| p.as_dvec3());
+    let (e1, e2) = (v1 - v0, v2 - v0);
+    let n = e1.cross(e2);
+    let t = (v0 - x).dot(n) / w.dot(n);
+    if !t.is_finite() {
+        return None;
+    }
+    let d = x + w * t - v0;
+    let inv = 1.0 / n.length_squared();
+    let b1 = d.cross(e2).dot(n) * inv;
+    let b2 = e1.cross(d).dot(n) * inv;
+    let b = [(1.0 - b1 - b2).max(0.0), b1.max(0.0), b2.max(0.0)];
+    let sum = b[0] + b[1] + b[2];
+    (sum > 0.0).then(|| b.map(|c| (c / sum) as f32))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampler::SampleStream;
+    use glam::DVec3;
+
+    /// `∫ max(0, n·ω) dω` over the emitting triangles of `scene` seen from `x` (Lambert's exact
+    /// formula for a polygon: ½ Σ over edges of the edge's angle times `n` dotted with the unit
+    /// normal of the plane through `x` and the edge).
+    fn projected_solid_angle(scene: &Scene, x: Vec3A, n: Vec3A) -> f64 {
+        let (x, n) = (x.as_dvec3(), n.as_dvec3());
+        scene
+            .emitters
+            .prims
+            .iter()
+            .map(|&prim| {
+                let r = scene.triangles[prim as usize].map(|p| (p.as_dvec3() - x).normalize());
+                let sum: f64 = (0..3)
+                    .map(|i| {
+                        let (a, b): (DVec3, DVec3) = (r[i], r[(i + 1) % 3]);
+                        a.dot(b).clamp(-1.0, 1.0).acos() * a.cross(b).normalize().dot(n)
+                    })
+                    .sum();
+                0.5 * sum.abs()
+            })
+            .sum()
+    }
+
+    /// Both light-sampling strategies estimate `∫ max(0, n·ω) dω` over the cornell-paper light
+    /// (unoccluded from the ceiling and the top of the walls) without bias: the mean of
+    /// `max(0, n·ω)/pdf(ω)` over 400k samples lies within 4.5 standard errors of Lambert's exact
+    /// value (one false alarm in ~150,000 per check). Where area sampling's weights are unbounded
+    /// (right above the light) only solid-angle sampling is checked; it is also checked to be the
+    /// less noisy of the two everywhere.
+    #[test]
+    fn light_sampling_strategies_agree_with_the_exact_integral() {
+        let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell-paper")).unwrap();
+        let ceiling = Vec3A::NEG_Y;
+        let cases = [
+            (Vec3A::new(0.1, 1.0, 0.05), ceiling, false),
+            (Vec3A::new(0.5, 1.0, 0.3), ceiling, true),
+            (Vec3A::new(-0.9, 1.0, -0.8), ceiling, true),
+            (Vec3A::new(-1.0, 0.985, 0.0), Vec3A::X, true),
+        ];
+        for (x, n, check_area) in cases {
+            let exact = projected_solid_angle(&scene, x, n);
+            let mut sd = [0.0; 2];
+            for (k, strategy) in [LightSampling::SolidAngle, LightSampling::Area].into_iter().enumerate() {
+                let mut rng = SampleStream::new(11, k as u32, 0);
+                let count = 400_000;
+                let (mut sum, mut sum_sq) = (0.0f64, 0.0f64);
+                for _ in 0..count {
+                    let (u_pick, u_point) = (rng.next_f32(), rng.next_2d());
+                    let value = scene.sample_emitter_from(x, strategy, u_pick, u_point).map_or(0.0, |s| {
+                        let w = (s.p - x).normalize();
+                        f64::from(n.dot(w).max(0.0) * s.inv_pdf)
+                    });
+                    sum += value;
+                    sum_sq += value * value;
+                }
+                let mean = sum / f64::from(count);
+                let var = (sum_sq / f64::from(count) - mean * mean).max(0.0);
+                sd[k] = var.sqrt();
+                let se = (var / f64::from(count)).sqrt();
+                if strategy == LightSampling::SolidAngle || check_area {
+                    let z = (mean - exact) / se.max(1e-12 * exact);
+                    assert!(z.abs() < 4.5, "{strategy:?} at {x}: {mean} vs exact {exact} (z {z})");
+                }
+            }
+            assert!(sd[0] < sd[1], "at {x}: solid-angle sd {} not below area sd {}", sd[0], sd[1]);
+        }
     }
 }
