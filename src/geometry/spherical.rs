@@ -18,6 +18,7 @@ pub const MIN_SOLID_ANGLE: f64 = 1e-4;
 pub struct SphericalTriangle {
     a: DVec3,
     b: DVec3,
+    c: DVec3,
     /// Unit tangent at `a` towards `c` (the great circle through `a` and `c`).
     t_ac: DVec3,
     /// The corner angle α at `a`, as its cosine and sine.
@@ -49,6 +50,7 @@ impl SphericalTriangle {
         (area.is_finite() && area > 0.0 && cos_alpha.is_finite() && sin_alpha.is_finite()).then_some(Self {
             a,
             b,
+            c,
             t_ac,
             cos_alpha,
             sin_alpha,
@@ -62,6 +64,31 @@ impl SphericalTriangle {
     #[must_use]
     pub fn solid_angle(&self) -> f64 {
         self.area
+    }
+
+    /// `n·a`, `n·b`, `n·c` for the unit directions to the corners: the cosine factor a shading
+    /// point with normal `n` applies at each.
+    #[inline]
+    #[must_use]
+    pub fn corner_cosines(&self, n: Vec3A) -> [f32; 3] {
+        let n = n.as_dvec3();
+        [n.dot(self.a) as f32, n.dot(self.b) as f32, n.dot(self.c) as f32]
+    }
+
+    /// Corner weights for [`crate::geometry::warp::bilinear`] in the layout of [`Self::sample`]'s
+    /// square (`(0,0)` and `(1,0)` map to `b`, `(0,1)` to `a`, `(1,1)` to `c`) approximating the
+    /// cosine factor of a point with normal `n` (floored at 1% of the largest so that no
+    /// direction the cosine can reach gets zero density); `None` when the whole triangle lies
+    /// below that point's horizon.
+    #[must_use]
+    pub fn cosine_warp_weights(&self, n: Vec3A) -> Option<[f32; 4]> {
+        let [ca, cb, cc] = self.corner_cosines(n);
+        let top = ca.max(cb).max(cc);
+        if top.is_nan() || top <= 0.0 {
+            return None;
+        }
+        let floor = 0.01 * top;
+        Some([cb.max(floor), cb.max(floor), ca.max(floor), cc.max(floor)])
     }
 
     /// A direction uniformly distributed over the triangle's solid angle. Arvo's map: `u.x`

@@ -79,7 +79,7 @@ pub fn direct_light<A: Accel>(
 ) -> Vec3A {
     let u_pick = rng.next_f32();
     let u_point = rng.next_2d();
-    let Some(light) = ctx.scene.sample_emitter_from(si.p, ctx.light_sampling, u_pick, u_point) else {
+    let Some(light) = ctx.scene.sample_emitter_from(si.p, si.n, ctx.light_sampling, u_pick, u_point) else {
         return Vec3A::ZERO;
     };
     let to_light = light.p - si.p;
