@@ -29,14 +29,54 @@ pub struct SphericalTriangle {
     area: f64,
 }
 
+/// The unit directions from `x` to the corners of `v`; `None` when `x` is on a corner.
+#[inline]
+fn corners(x: Vec3A, v: &[Vec3A; 3]) -> Option<[DVec3; 3]> {
+    let x = x.as_dvec3();
+    let dir = |p: Vec3A| (p.as_dvec3() - x).try_normalize();
+    Some([dir(v[0])?, dir(v[1])?, dir(v[2])?])
+}
+
+/// Van Oosterom and Strackee's solid angle of the triangle with unit corner directions
+/// `a, b, c`: `tan(Ω/2) = |a·(b×c)| / (1 + a·b + b·c + c·a)`.
+#[inline]
+fn area(a: DVec3, b: DVec3, c: DVec3) -> f64 {
+    2.0 * a.dot(b.cross(c)).abs().atan2(1.0 + a.dot(b) + b.dot(c) + c.dot(a))
+}
+
+/// The solid angle of triangle `v` seen from `x` and the cosines `n·a, n·b, n·c` at its corner
+/// directions: what choosing among emitters needs, without the sampler's set-up.
+#[must_use]
+pub fn solid_angle_and_cosines(x: Vec3A, v: &[Vec3A; 3], n: Vec3A) -> Option<(f64, [f32; 3])> {
+    let [a, b, c] = corners(x, v)?;
+    let n = n.as_dvec3();
+    let omega = area(a, b, c);
+    omega.is_finite().then_some((omega, [n.dot(a) as f32, n.dot(b) as f32, n.dot(c) as f32]))
+}
+
+/// Corner weights for [`crate::geometry::warp::bilinear`] in the layout of
+/// [`SphericalTriangle::sample`]'s square (`(0,0)` and `(1,0)` map to `b`, `(0,1)` to `a`,
+/// `(1,1)` to `c`) from the cosines at corners `a, b, c`, approximating the cosine factor of the
+/// shading point (floored at 1% of the largest so that no direction the cosine can reach gets
+/// zero density); `None` when the whole triangle lies below the shading point's horizon (a
+/// direction inside it is a positive combination of the corners).
+#[inline]
+#[must_use]
+pub fn cosine_warp_weights([ca, cb, cc]: [f32; 3]) -> Option<[f32; 4]> {
+    let top = ca.max(cb).max(cc);
+    if top.is_nan() || top <= 0.0 {
+        return None;
+    }
+    let floor = 0.01 * top;
+    Some([cb.max(floor), cb.max(floor), ca.max(floor), cc.max(floor)])
+}
+
 impl SphericalTriangle {
     /// The triangle `v` seen from `x`; `None` when `x` lies in its plane or on a corner (no
     /// solid angle), or when anything is not finite.
     #[must_use]
     pub fn new(x: Vec3A, v: &[Vec3A; 3]) -> Option<Self> {
-        let x = x.as_dvec3();
-        let dir = |p: Vec3A| (p.as_dvec3() - x).try_normalize();
-        let (a, b, c) = (dir(v[0])?, dir(v[1])?, dir(v[2])?);
+        let [a, b, c] = corners(x, v)?;
         // The corner angle α between the great circles a–b and a–c: with unit a,
         // (a×b)·(a×c) = |a×b||a×c| cos α and |(a×b)×(a×c)| = |a·(b×c)| = |a×b||a×c| sin α,
         // so no inverse trigonometry is needed.
@@ -44,8 +84,7 @@ impl SphericalTriangle {
         let triple = a.dot(b.cross(c)).abs();
         let inv = 1.0 / (ab.length() * ac.length());
         let (cos_alpha, sin_alpha) = (ab.dot(ac) * inv, triple * inv);
-        // The area (solid angle) by Van Oosterom and Strackee, for unit corner vectors.
-        let area = 2.0 * triple.atan2(1.0 + a.dot(b) + b.dot(c) + c.dot(a));
+        let area = area(a, b, c);
         let t_ac = (c - a * c.dot(a)).try_normalize()?;
         (area.is_finite() && area > 0.0 && cos_alpha.is_finite() && sin_alpha.is_finite()).then_some(Self {
             a,
@@ -75,20 +114,11 @@ impl SphericalTriangle {
         [n.dot(self.a) as f32, n.dot(self.b) as f32, n.dot(self.c) as f32]
     }
 
-    /// Corner weights for [`crate::geometry::warp::bilinear`] in the layout of [`Self::sample`]'s
-    /// square (`(0,0)` and `(1,0)` map to `b`, `(0,1)` to `a`, `(1,1)` to `c`) approximating the
-    /// cosine factor of a point with normal `n` (floored at 1% of the largest so that no
-    /// direction the cosine can reach gets zero density); `None` when the whole triangle lies
-    /// below that point's horizon.
+    /// [`cosine_warp_weights`] for a shading point with normal `n`.
+    #[inline]
     #[must_use]
     pub fn cosine_warp_weights(&self, n: Vec3A) -> Option<[f32; 4]> {
-        let [ca, cb, cc] = self.corner_cosines(n);
-        let top = ca.max(cb).max(cc);
-        if top.is_nan() || top <= 0.0 {
-            return None;
-        }
-        let floor = 0.01 * top;
-        Some([cb.max(floor), cb.max(floor), ca.max(floor), cc.max(floor)])
+        cosine_warp_weights(self.corner_cosines(n))
     }
 
     /// A direction uniformly distributed over the triangle's solid angle. Arvo's map: `u.x`

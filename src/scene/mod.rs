@@ -292,11 +292,12 @@ impl Scene {
                 self.in_front(i, x).then(|| self.sample_area(i, pmf, x, u_point))?
             }
             LightSampling::SolidAngle if self.emitters.prims.len() <= FEW_EMITTERS => {
-                let mut views = [EmitterView::Hidden; FEW_EMITTERS];
+                let count = self.emitters.prims.len();
+                let mut weights = [0.0f32; FEW_EMITTERS];
                 let mut total = 0.0;
-                for (i, view) in views.iter_mut().enumerate().take(self.emitters.prims.len()) {
-                    *view = self.view(i, x, n);
-                    total += view.weight();
+                for (i, w) in weights.iter_mut().enumerate().take(count) {
+                    *w = self.weight(i, x, n);
+                    total += *w;
                 }
                 if !(total > 0.0) {
                     return None;
@@ -305,30 +306,21 @@ impl Scene {
                 let target = u_pick * total;
                 let mut acc = 0.0;
                 let mut pick = None;
-                for (i, view) in views.iter().enumerate().take(self.emitters.prims.len()) {
-                    if view.weight() > 0.0 {
+                for (i, &w) in weights.iter().enumerate().take(count) {
+                    if w > 0.0 {
                         pick = Some(i);
-                        acc += view.weight();
+                        acc += w;
                         if target < acc {
                             break;
                         }
                     }
                 }
                 let i = pick?;
-                let pmf = views[i].weight() / total;
-                match views[i] {
-                    EmitterView::Spherical { st, .. } => self.sample_spherical(i, pmf, x, n, &st, u_point),
-                    EmitterView::Small { .. } => self.sample_area(i, pmf, x, u_point),
-                    EmitterView::Hidden => None,
-                }
+                self.sample_solid_angle(i, weights[i] / total, x, n, u_point)
             }
             LightSampling::SolidAngle => {
                 let (i, pmf) = choice.sample(u_pick);
-                match self.view(i, x, n) {
-                    EmitterView::Spherical { st, .. } => self.sample_spherical(i, pmf, x, n, &st, u_point),
-                    EmitterView::Small { .. } => self.sample_area(i, pmf, x, u_point),
-                    EmitterView::Hidden => None,
-                }
+                self.in_front(i, x).then(|| self.sample_solid_angle(i, pmf, x, n, u_point))?
             }
         }
     }
@@ -341,58 +333,45 @@ impl Scene {
         (x - self.triangles[prim][0]).dot(self.normals[prim]) > 0.0
     }
 
-    /// Emitter `i` as seen from `x` with normal `n`, with a weight proportional to an estimate
-    /// of its unoccluded contribution there: zero only where the contribution is zero.
-    fn view(&self, i: usize, x: Vec3A, n: Vec3A) -> EmitterView {
+    /// A weight for emitter `i` at `x` (normal `n`) proportional to an estimate of its
+    /// unoccluded contribution there, zero only where the contribution is zero: `lum(Le)` times
+    /// `∫ cosθ dω` over the triangle, estimated as Ω times the mean cosine warp weight (or, below
+    /// [`spherical::MIN_SOLID_ANGLE`], as `A·cosθy/d²` at the centroid times the largest corner
+    /// cosine).
+    fn weight(&self, i: usize, x: Vec3A, n: Vec3A) -> f32 {
         if !self.in_front(i, x) {
-            return EmitterView::Hidden;
+            return 0.0;
         }
         let prim = self.emitters.prims[i];
         let v = &self.triangles[prim as usize];
         let lum = luminance(self.material_of(prim).emission);
-        match SphericalTriangle::new(x, v) {
-            Some(st) if st.solid_angle() >= spherical::MIN_SOLID_ANGLE => match st.cosine_warp_weights(n) {
-                // Ω times the warp's mean cosine: ∫ cosθ dω over the triangle, approximately.
-                Some(w) => EmitterView::Spherical {
-                    st,
-                    weight: lum * (st.solid_angle() as f32) * 0.25 * (w[0] + w[1] + w[2] + w[3]),
-                },
-                None => EmitterView::Hidden,
-            },
-            // Too small for Arvo's construction: Ω ≈ A·cosθy/d² at the centroid, times the
-            // largest corner cosine (positive whenever any of the triangle is above x's horizon).
-            _ => {
-                let centroid = (v[0] + v[1] + v[2]) / 3.0;
-                let to = centroid - x;
-                let d2 = to.length_squared();
-                let cos_y = (-self.normals[prim as usize].dot(to) / d2.sqrt()).max(0.0);
-                let cos_x = v.iter().map(|&p| n.dot((p - x).normalize_or_zero())).fold(0.0f32, f32::max);
-                let weight = lum * self.emitters.areas[i] * cos_y / d2 * cos_x;
-                if weight.is_finite() && weight > 0.0 {
-                    EmitterView::Small { weight }
-                } else if cos_x > 0.0 {
-                    EmitterView::Small { weight: f32::MIN_POSITIVE }
-                } else {
-                    EmitterView::Hidden
-                }
-            }
+        let Some((omega, cosines)) = spherical::solid_angle_and_cosines(x, v, n) else {
+            return 0.0;
+        };
+        let Some(w) = spherical::cosine_warp_weights(cosines) else {
+            return 0.0;
+        };
+        if omega >= spherical::MIN_SOLID_ANGLE {
+            return lum * omega as f32 * 0.25 * (w[0] + w[1] + w[2] + w[3]);
         }
+        let centroid = (v[0] + v[1] + v[2]) / 3.0;
+        let to = centroid - x;
+        let d2 = to.length_squared();
+        let cos_y = (-self.normals[prim as usize].dot(to) / d2.sqrt()).max(0.0);
+        let weight = lum * self.emitters.areas[i] * cos_y / d2 * cosines[0].max(cosines[1]).max(cosines[2]);
+        if weight.is_finite() && weight > 0.0 { weight } else { f32::MIN_POSITIVE }
     }
 
-    /// A direction in the solid angle of emitter `i` (chosen with probability `pmf`), warped
-    /// bilinearly towards the corners with the larger cosine at `x` so that the sample's weight
-    /// `cosθx/pdf` is nearly constant.
-    fn sample_spherical(
-        &self,
-        i: usize,
-        pmf: f32,
-        x: Vec3A,
-        n: Vec3A,
-        st: &SphericalTriangle,
-        u_point: Vec2,
-    ) -> Option<DirectSample> {
+    /// A point on emitter `i` (chosen with probability `pmf`) by solid angle: Arvo's uniform
+    /// direction warped bilinearly towards the corners with the larger cosine at `x`, so that
+    /// the weight `cosθx/pdf` is nearly constant; by area below [`spherical::MIN_SOLID_ANGLE`].
+    fn sample_solid_angle(&self, i: usize, pmf: f32, x: Vec3A, n: Vec3A, u_point: Vec2) -> Option<DirectSample> {
         let prim = self.emitters.prims[i];
         let v = &self.triangles[prim as usize];
+        let Some(st) = SphericalTriangle::new(x, v).filter(|st| st.solid_angle() >= spherical::MIN_SOLID_ANGLE)
+        else {
+            return self.sample_area(i, pmf, x, u_point);
+        };
         let w = st.cosine_warp_weights(n)?;
         let u = warp::bilinear(u_point, w);
         let pdf_u = warp::bilinear_pdf(u, w);
@@ -434,27 +413,6 @@ impl Scene {
 /// Up to this many emitter triangles, solid-angle light sampling weighs every emitter at every
 /// shading point (a few Arvo set-ups); beyond it, emitters are chosen by power.
 pub const FEW_EMITTERS: usize = 8;
-
-/// An emitter triangle as seen from a shading point, for choosing among few emitters.
-#[derive(Clone, Copy, Debug)]
-enum EmitterView {
-    /// Behind its emitting side or below the horizon: contributes nothing.
-    Hidden,
-    /// Sampled by solid angle.
-    Spherical { st: SphericalTriangle, weight: f32 },
-    /// Too small a solid angle for Arvo's construction: sampled by area.
-    Small { weight: f32 },
-}
-
-impl EmitterView {
-    #[inline]
-    fn weight(&self) -> f32 {
-        match self {
-            EmitterView::Hidden => 0.0,
-            EmitterView::Spherical { weight, .. } | EmitterView::Small { weight } => *weight,
-        }
-    }
-}
 
 /// Barycentrics of the point where the ray from `x` along `w` meets the plane of `v`, clamped
 /// into the triangle; `None` if the ray is parallel to the plane.
@@ -575,7 +533,6 @@ mod tests {
                 let mean = sum / f64::from(count);
                 let se = ((sum_sq / f64::from(count) - mean * mean).max(0.0) / f64::from(count)).sqrt();
                 let z = (mean - std::f64::consts::PI) / se;
-                eprintln!("{strategy:?} {prim}: cv {}", se * (f64::from(count)).sqrt() / mean);
                 assert!(z.abs() < 4.5, "{strategy:?} at triangle {prim}: {mean} ± {se} vs π (z {z})");
             }
         }
