@@ -74,7 +74,8 @@ pub fn bilinear_pdf(p: Vec2, w: [f32; 4]) -> f32 {
     if sum <= 0.0 {
         return 1.0;
     }
-    let value = (1.0 - p.x) * (1.0 - p.y) * w[0] + p.x * (1.0 - p.y) * w[1] + (1.0 - p.x) * p.y * w[2] + p.x * p.y * w[3];
+    let value =
+        (1.0 - p.x) * (1.0 - p.y) * w[0] + p.x * (1.0 - p.y) * w[1] + (1.0 - p.x) * p.y * w[2] + p.x * p.y * w[3];
     4.0 * value / sum
 }
 
@@ -250,7 +251,8 @@ mod tests {
             for _ in 0..n {
                 let p = bilinear(rng.next_2d(), w);
                 assert!((0.0..=1.0).contains(&p.x) && (0.0..=1.0).contains(&p.y), "{w:?}: {p}");
-                let (i, j) = (((p.x * cells as f32) as usize).min(cells - 1), ((p.y * cells as f32) as usize).min(cells - 1));
+                let (i, j) =
+                    (((p.x * cells as f32) as usize).min(cells - 1), ((p.y * cells as f32) as usize).min(cells - 1));
                 hist[j * cells + i] += 1.0;
             }
             let (mut chi2, mut total) = (0.0, 0.0);

@@ -368,8 +368,7 @@ impl Scene {
     fn sample_solid_angle(&self, i: usize, pmf: f32, x: Vec3A, n: Vec3A, u_point: Vec2) -> Option<DirectSample> {
         let prim = self.emitters.prims[i];
         let v = &self.triangles[prim as usize];
-        let Some(st) = SphericalTriangle::new(x, v).filter(|st| st.solid_angle() >= spherical::MIN_SOLID_ANGLE)
-        else {
+        let Some(st) = SphericalTriangle::new(x, v).filter(|st| st.solid_angle() >= spherical::MIN_SOLID_ANGLE) else {
             return self.sample_area(i, pmf, x, u_point);
         };
         let w = st.cosine_warp_weights(n)?;
@@ -524,9 +523,9 @@ mod tests {
                 let (mut sum, mut sum_sq) = (0.0f64, 0.0f64);
                 for _ in 0..count {
                     let (u_pick, u_point) = (rng.next_f32(), rng.next_2d());
-                    let value = scene.sample_emitter_from(x, n, strategy, u_pick, u_point).map_or(0.0, |s| {
-                        f64::from(n.dot((s.p - x).normalize()).max(0.0) * s.inv_pdf)
-                    });
+                    let value = scene
+                        .sample_emitter_from(x, n, strategy, u_pick, u_point)
+                        .map_or(0.0, |s| f64::from(n.dot((s.p - x).normalize()).max(0.0) * s.inv_pdf));
                     sum += value;
                     sum_sq += value * value;
                 }

@@ -121,3 +121,8 @@ impl<I: Integrator> Integrator for Scaled<I> {
 pub fn max_image_z(a: &Image, reference: &Image) -> f64 {
     max_block_z(a, reference, a.width.max(a.height)).0
 }
+
+/// As [`max_image_z`], each image at its own variance (see [`max_block_z_both`]).
+pub fn max_image_z_both(a: &Image, reference: &Image) -> f64 {
+    max_block_z_both(a, reference, a.width.max(a.height)).0
+}
