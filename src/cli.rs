@@ -232,9 +232,10 @@ pub struct PhotonArgs {
     /// paper's choice). Jensen always uses all.
     #[arg(long, value_enum, default_value_t = GuidePhotons::Indirect)]
     pub guide: GuidePhotons,
-    /// ε_L: every guide-grid cell is floored at this fraction of the mean cell (ALGORITHM.md
-    /// §2); larger values mix in more cosine sampling and bound the path weights.
-    #[arg(long, default_value_t = 0.1)]
+    /// ε_L: every guide-grid cell is floored at this fraction of the mean cell, i.e. the grid
+    /// is mixed with cosine sampling in proportion ε_L : 1 and direction weights stay below
+    /// (1 + 1/ε_L)·ρ. ALGORITHM.md §2 suggests 0.1; 1 measured best (see README).
+    #[arg(long, default_value_t = 1.0)]
     pub guide_floor: f32,
     /// ZVIDPT's largest termination probability q (ALGORITHM.md §2: 0.95); must be below 1,
     /// or the indirect term would be dropped.
