@@ -241,6 +241,10 @@ pub struct PhotonArgs {
     /// or the indirect term would be dropped.
     #[arg(long, default_value_t = 0.95)]
     pub q_max: f32,
+    /// κ in ZVIDPT's termination probability q = L̃1/(L̃1 + κ·L̃ind); 1 is ALGORITHM.md's
+    /// q = L̃1/L̃r, larger values continue walks more often where direct light dominates.
+    #[arg(long, default_value_t = 1.0)]
+    pub q_kappa: f32,
     /// Precompute guide records after the photon pass (on) or query the photon map at every
     /// walk vertex (off, the paper's way; slower).
     #[arg(long, value_enum, default_value_t = Switch::On)]
@@ -261,6 +265,7 @@ impl PhotonArgs {
             guide_floor: g.floor,
             guide_cache: Switch::On,
             q_max: 0.95,
+            q_kappa: 1.0,
         }
     }
 
@@ -282,6 +287,9 @@ impl PhotonArgs {
         }
         if !(self.guide_floor.is_finite() && self.guide_floor > 0.0) {
             return Err(Error::InvalidOption("--guide-floor must be a positive number".into()));
+        }
+        if !(self.q_kappa.is_finite() && self.q_kappa > 0.0) {
+            return Err(Error::InvalidOption("--q-kappa must be a positive number".into()));
         }
         if !(self.q_max >= 0.05 && self.q_max < 1.0) {
             return Err(Error::InvalidOption("--q-max must lie in [0.05, 1)".into()));
@@ -306,6 +314,7 @@ impl PhotonArgs {
         if matches!(integrator, IntegratorKind::ZvidptTerminal | IntegratorKind::ZvidptCollision) {
             meta.push("pixel_grid", format!("{}x{}", self.pixel_grid.rows, self.pixel_grid.cols));
             meta.push("q_max", self.q_max);
+            meta.push("q_kappa", self.q_kappa);
             meta.push("guide", if self.guide == GuidePhotons::All { "all" } else { "indirect" });
         }
     }
@@ -376,8 +385,12 @@ impl WithAccel for RenderJob<'_> {
     fn run<A: Accel>(self, accel: &A) -> Self::Output {
         let a = self.photon;
         let guide = a.settings();
-        let zvidpt =
-            |estimator| Zvidpt { pixel_grid: a.pixel_grid, q_max: a.q_max, ..Zvidpt::new(estimator, guide.clone()) };
+        let zvidpt = |estimator| Zvidpt {
+            pixel_grid: a.pixel_grid,
+            q_max: a.q_max,
+            q_kappa: a.q_kappa,
+            ..Zvidpt::new(estimator, guide.clone())
+        };
         let (scene, s) = (self.scene, self.settings);
         let (image, stats) = match self.integrator {
             IntegratorKind::Path => render(scene, accel, &mut PathTracer::default(), s)?,

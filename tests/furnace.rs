@@ -16,13 +16,19 @@ fn path_tracer_matches_analytic_furnace() {
     let z = (mean - 1.0) / se;
     eprintln!("furnace path: mean {mean:.6}, s.e. {se:.2e}, z {z:.2}");
     assert!(z.abs() < Z_BOUND, "mean {mean} s.e. {se} z {z}");
-    // Every pixel, not just the mean: each is within a Šidák-corrected bound of 1.
+    // Every pixel, not just the mean: each is within a Šidák-corrected bound of 1, at the
+    // pooled per-sample variance (every pixel sees the same sphere, so all share one
+    // distribution). A pixel's own 64-sample variance is not used: the per-sample
+    // distribution is skewed (Russian roulette's geometric tail), so pixels whose samples
+    // stopped early look both low and certain, and own-variance z reached −6.6 for a
+    // correct renderer (pooled: |z| ≤ 4.1 over seeds 1–5).
     let v = img.variance.as_ref().unwrap();
     let bound = zvidpt::stats::family_z_bound(img.pixels.len() * 3, 1e-3);
-    for (p, var) in img.pixels.iter().zip(v) {
+    let pooled = v.iter().map(|p| p[0] as f64).sum::<f64>() / v.len() as f64;
+    let se = (pooled / img.spp as f64).sqrt();
+    for p in &img.pixels {
         for c in 0..3 {
-            let se = (var[c] as f64 / img.spp as f64).sqrt();
-            assert!(((p[c] as f64 - 1.0) / se).abs() < bound, "pixel {p:?} var {var:?}");
+            assert!(((p[c] as f64 - 1.0) / se).abs() < bound, "pixel {p:?}, pooled s.e. {se}");
         }
     }
 }

@@ -175,9 +175,33 @@ pub fn radiance_estimate(albedo: Vec3A, density: Vec3A) -> Vec3A {
 
 /// ZVIDPT's termination probability `q = clamp(lum(L̃1)/lum(L̃r), q_min, q_max)`, 0.5 where
 /// `L̃r = 0` (ALGORITHM.md §2). `q_max < 1` keeps the indirect term, so no bias.
+///
+/// `kappa` generalises it to `q = L̃1 / (L̃1 + κ·L̃ind)` (κ = 1: ALGORITHM.md's). Terminating
+/// with probability q costs `L1²/q + E[S²]/(1−q)` in second moment, S being the rest of the
+/// walk's estimate of `Lind`; that is smallest at `q = L1/(L1 + √E[S²])`, which is
+/// ALGORITHM.md's q only when S is exact. κ > 1 stands for the rest of the walk's noise.
 #[inline]
 #[must_use]
-pub fn termination_probability(albedo: Vec3A, d: &FluxDensity, q_min: f32, q_max: f32) -> f32 {
+pub fn termination_probability(albedo: Vec3A, d: &FluxDensity, q_min: f32, q_max: f32, kappa: f32) -> f32 {
     let lr = luminance(albedo * d.all);
-    if lr > 0.0 { (luminance(albedo * d.direct) / lr).clamp(q_min, q_max) } else { 0.5 }
+    let l1 = luminance(albedo * d.direct);
+    if lr > 0.0 { (l1 / (l1 + kappa * (lr - l1).max(0.0))).clamp(q_min, q_max) } else { 0.5 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn termination_probability_follows_its_definition() {
+        let d = |direct: f32, all: f32| FluxDensity { all: Vec3A::splat(all), direct: Vec3A::splat(direct) };
+        let white = Vec3A::ONE;
+        // κ = 1: ALGORITHM.md's L̃1/L̃r, clamped to [q_min, q_max]; 0.5 without light.
+        assert!((termination_probability(white, &d(3.0, 4.0), 0.05, 0.95, 1.0) - 0.75).abs() < 1e-6);
+        assert_eq!(termination_probability(white, &d(4.0, 4.0), 0.05, 0.95, 1.0), 0.95);
+        assert_eq!(termination_probability(white, &d(0.0, 4.0), 0.05, 0.95, 1.0), 0.05);
+        assert_eq!(termination_probability(white, &d(0.0, 0.0), 0.05, 0.95, 1.0), 0.5);
+        // κ = 3: L1/(L1 + 3·Lind) = 3/(3 + 3) = 0.5.
+        assert!((termination_probability(white, &d(3.0, 4.0), 0.05, 0.95, 3.0) - 0.5).abs() < 1e-6);
+    }
 }

@@ -65,7 +65,7 @@ pub(crate) fn trace_path<A: Accel>(
     rr_depth: u32,
     mut sample_direction: impl FnMut(&SurfaceInteraction, &mut SampleStream) -> (Vec3A, Vec3A),
 ) -> Vec3A {
-    let film = pixel.as_vec2() + rng.next_2d();
+    let film = pixel.as_vec2() + rng.pixel_2d();
     let ray = ctx.scene.camera.ray(film);
     scratch.rays += 1;
     let Some(hit) = ctx.accel.intersect(&ray) else {

@@ -35,6 +35,8 @@ pub struct Zvidpt {
     pub pixel_floor: f32,
     pub q_min: f32,
     pub q_max: f32,
+    /// `κ` of [`termination_probability`] (1: ALGORITHM.md's `q = L̃1/L̃r`).
+    pub q_kappa: f32,
     pub guide: Option<Guide>,
 }
 
@@ -48,6 +50,7 @@ impl Zvidpt {
             pixel_floor: 0.1,
             q_min: 0.05,
             q_max: 0.95,
+            q_kappa: 1.0,
             guide: None,
         }
     }
@@ -117,10 +120,15 @@ impl Integrator for Zvidpt {
         let shape = self.pixel_grid;
         let n = shape.cells();
         let cdf = &grid.cdf[..n];
-        let u_sub = rng.next_f32();
-        let j = cdf.partition_point(|&c| c <= u_sub).min(n - 1);
-        let pj = cdf[j] - if j > 0 { cdf[j - 1] } else { 0.0 };
-        let film = pixel.as_vec2() + subpixel_point(shape, j, rng.next_2d());
+        // The sample's stratified pixel point picks the subpixel by inverting Gp's CDF along x
+        // and, rescaled, places the point inside it: the film point's density is `n·Pj`, and
+        // the pixel's stratification carries over to its subpixels.
+        let u = rng.pixel_2d();
+        let j = cdf.partition_point(|&c| c <= u.x).min(n - 1);
+        let below = if j > 0 { cdf[j - 1] } else { 0.0 };
+        let pj = cdf[j] - below;
+        let ux = ((u.x - below) / pj).clamp(0.0, 1.0 - f32::EPSILON);
+        let film = pixel.as_vec2() + subpixel_point(shape, j, Vec2::new(ux, u.y));
         let ray = ctx.scene.camera.ray(film);
         scratch.rays += 1;
         let Some(hit) = ctx.accel.intersect(&ray) else {
@@ -158,7 +166,7 @@ impl Zvidpt {
             }
             let frame = Frame::from_normal(si.n);
             let g = guide.at(&si, &frame, grid);
-            let q = termination_probability(albedo, &g.density, self.q_min, self.q_max);
+            let q = termination_probability(albedo, &g.density, self.q_min, self.q_max, self.q_kappa);
             match self.estimator {
                 Estimator::Terminal => {
                     if rng.next_f32() < q {
