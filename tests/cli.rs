@@ -103,6 +103,28 @@ fn render_info_and_diff_smoke() {
     assert!(map.is_file());
     let same = zvidpt(&["diff", s(&a), s(&a)]);
     assert!(String::from_utf8_lossy(&same.stdout).starts_with("MSE 0.000000e0"));
+    // Error by bands of rows: one line each, shares adding up to 100%.
+    let bands = zvidpt(&["diff", s(&a), s(&b), "--bands", "4"]);
+    let text = String::from_utf8_lossy(&bands.stdout);
+    let shares: f64 = text
+        .lines()
+        .filter_map(|l| l.split("share").nth(1))
+        .map(|v| v.trim().trim_end_matches('%').trim().parse::<f64>().unwrap())
+        .sum();
+    assert!(bands.status.success() && text.lines().count() == 5 && (shares - 100.0).abs() < 0.5, "{text}");
+    let zero = zvidpt(&["diff", s(&a), s(&b), "--bands", "0"]);
+    assert!(!zero.status.success() && String::from_utf8_lossy(&zero.stderr).starts_with("error: "));
+    // A reader that goes away (`| head`) ends the command quietly, not with a panic.
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_zvidpt"))
+        .args(["diff", s(&a), s(&b), "--bands", "8"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && !stderr.contains("panicked"), "{stderr}");
     // Time budget: stops after whole passes.
     let out = zvidpt(&[
         "render",
@@ -213,6 +235,10 @@ fn zero_spp_and_bad_numbers() {
     expect_error(&d, &["--spp", "many"], "many");
     expect_error(&d, &["--resolution", "12"], "WIDTHxHEIGHT");
     expect_error(&d, &["--integrator", "magic"], "magic");
+    expect_error(&d, &["--light-sampling", "sideways"], "sideways");
+    expect_error(&d, &["--guide-floor", "0"], "guide-floor");
+    expect_error(&d, &["--q-kappa", "0"], "q-kappa");
+    expect_error(&d, &["--q-max", "1"], "q-max");
 }
 
 #[test]
