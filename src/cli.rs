@@ -34,6 +34,11 @@ macro_rules! warn {
     }};
 }
 
+/// The command-line spelling of a value (`zvidpt-terminal`, `solid-angle`), as written into
+/// metadata and tables.
+fn flag_name(value: impl ValueEnum) -> String {
+    value.to_possible_value().map_or("?".into(), |v| v.get_name().to_string())
+}
 #[derive(Debug, Parser)]
 #[command(
     name = "zvidpt",
@@ -299,23 +304,20 @@ impl PhotonArgs {
 
     /// Metadata describing the options that shaped `integrator`'s image.
     fn describe(&self, integrator: IntegratorKind, meta: &mut Metadata) {
-        meta.push(
-            "light_sampling",
-            self.light_sampling.to_possible_value().map_or("?".into(), |v| v.get_name().to_string()),
-        );
+        meta.push("light_sampling", flag_name(self.light_sampling));
         if integrator == IntegratorKind::Path {
             return;
         }
         meta.push("photons", self.photons);
         meta.push("knn", self.knn);
         meta.push("guide_grid", format!("{}x{}", self.guide_grid.rows, self.guide_grid.cols));
-        meta.push("guide_cache", if self.guide_cache == Switch::On { "on" } else { "off" });
+        meta.push("guide_cache", flag_name(self.guide_cache));
         meta.push("guide_floor", self.guide_floor);
         if matches!(integrator, IntegratorKind::ZvidptTerminal | IntegratorKind::ZvidptCollision) {
             meta.push("pixel_grid", format!("{}x{}", self.pixel_grid.rows, self.pixel_grid.cols));
             meta.push("q_max", self.q_max);
             meta.push("q_kappa", self.q_kappa);
-            meta.push("guide", if self.guide == GuidePhotons::All { "all" } else { "indirect" });
+            meta.push("guide", flag_name(self.guide));
         }
     }
 }
@@ -460,7 +462,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
 
     let mut meta = Metadata::default();
     meta.push("scene", scene.path.display());
-    meta.push("integrator", integrator.to_possible_value().map_or("?".into(), |v| v.get_name().to_string()));
+    meta.push("integrator", flag_name(integrator));
     meta.push("backend", backend);
     meta.push("seed", args.seed);
     meta.push("seconds", format!("{:.3}", stats.seconds));
@@ -656,7 +658,7 @@ fn run_converge(args: &ConvergeArgs) -> Result<()> {
     }
     let mut runs = Vec::new();
     for &integrator in &args.integrators {
-        let name = integrator.to_possible_value().map_or("?".into(), |v| v.get_name().to_string());
+        let name = flag_name(integrator);
         for &spp in &args.spp {
             for r in 0..args.runs {
                 let seed = args.seed + r as u64;
@@ -705,6 +707,21 @@ fn run_converge(args: &ConvergeArgs) -> Result<()> {
     Ok(())
 }
 
+impl ConvergeArgs {
+    /// The render settings of one convergence render: a sample count or a time budget.
+    fn settings(&self, spp: Option<u32>, time_limit: Option<f64>, seed: u64) -> RenderSettings {
+        RenderSettings {
+            spp,
+            time_limit,
+            seed,
+            threads: self.machine.threads,
+            tile_size: 32,
+            progress: false,
+            light_sampling: self.photon.light_sampling,
+        }
+    }
+}
+
 /// One convergence point: `integrator` at `spp` with `seed`, and its error against `reference`.
 fn measure(
     args: &ConvergeArgs,
@@ -714,15 +731,7 @@ fn measure(
     spp: u32,
     seed: u64,
 ) -> Result<(RenderStats, crate::film::Metrics)> {
-    let settings = RenderSettings {
-        spp: Some(spp),
-        time_limit: None,
-        seed,
-        threads: args.machine.threads,
-        tile_size: 32,
-        progress: false,
-        light_sampling: args.photon.light_sampling,
-    };
+    let settings = args.settings(Some(spp), None, seed);
     let (image, stats, _) = render_scene(scene, integrator, &args.photon, args.machine.backend, &settings)?;
     let metrics = film::metrics(&image, reference)?;
     Ok((stats, metrics))
@@ -742,7 +751,7 @@ fn run_time_to_mse(args: &ConvergeArgs, scene: &Scene, reference: &Image, target
         args.runs
     );
     for &integrator in &args.integrators {
-        let name = integrator.to_possible_value().map_or("?".into(), |v| v.get_name().to_string());
+        let name = flag_name(integrator);
         let mut seconds = Vec::new();
         let mut spps = Vec::new();
         for r in 0..args.runs {
@@ -787,16 +796,8 @@ fn equal_time_image(args: &ConvergeArgs, scene: &Scene, reference: &Image, secon
     }
     let mut shots = Vec::new();
     for &integrator in &args.integrators {
-        let name = integrator.to_possible_value().map_or("?".into(), |v| v.get_name().to_string());
-        let settings = RenderSettings {
-            spp: None,
-            time_limit: Some(seconds),
-            seed: args.seed,
-            threads: args.machine.threads,
-            tile_size: 32,
-            progress: false,
-            light_sampling: args.photon.light_sampling,
-        };
+        let name = flag_name(integrator);
+        let settings = args.settings(None, Some(seconds), args.seed);
         let (image, stats, _) = render_scene(scene, integrator, &args.photon, args.machine.backend, &settings)?;
         let m = film::metrics(&image, reference)?;
         out!("equal time {seconds} s: {name} {} spp, MSE {:.4e}, relMSE {:.4e}", stats.spp, m.mse, m.rel_mse);

@@ -79,6 +79,31 @@ pub fn bilinear_pdf(p: Vec2, w: [f32; 4]) -> f32 {
     4.0 * value / sum
 }
 
+/// Picks an item with probability ∝ its weight from a short list without building a CDF (the
+/// per-call, allocation-free counterpart of [`Discrete`]): `total` is the weights' sum, `u` in
+/// `[0, 1)`. Returns the item and its probability; zero-weight items are never picked (the last
+/// positive one takes any rounding rest); `None` when no weight is positive.
+#[inline]
+#[must_use]
+pub fn pick_by_weight(weights: &[f32], total: f32, u: f32) -> Option<(usize, f32)> {
+    if total.is_nan() || total <= 0.0 {
+        return None;
+    }
+    let target = u * total;
+    let mut acc = 0.0;
+    let mut pick = None;
+    for (i, &w) in weights.iter().enumerate() {
+        if w > 0.0 {
+            pick = Some(i);
+            acc += w;
+            if target < acc {
+                break;
+            }
+        }
+    }
+    pick.map(|i| (i, weights[i] / total))
+}
+
 /// A discrete distribution over `n` items by weight, sampled by inverting its CDF.
 #[derive(Clone, Debug, Default)]
 pub struct Discrete {
@@ -275,6 +300,17 @@ mod tests {
             let bound = chi_square_critical(dof - 1, 1e-4);
             assert!(chi2 < bound, "{w:?}: chi-square {chi2} ≥ {bound}");
         }
+    }
+
+    #[test]
+    fn pick_by_weight_follows_the_weights() {
+        let w = [0.0, 1.0, 0.0, 3.0, 0.0];
+        assert_eq!(pick_by_weight(&w, 4.0, 0.0), Some((1, 0.25)));
+        assert_eq!(pick_by_weight(&w, 4.0, 0.2499), Some((1, 0.25)));
+        assert_eq!(pick_by_weight(&w, 4.0, 0.25), Some((3, 0.75)));
+        // Rounding past the end falls on the last positive weight, never on a zero one.
+        assert_eq!(pick_by_weight(&w, 3.9, 0.9999), Some((3, 3.0 / 3.9)));
+        assert_eq!(pick_by_weight(&[0.0, 0.0], 0.0, 0.5), None);
     }
 
     #[test]

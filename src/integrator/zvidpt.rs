@@ -14,6 +14,7 @@ use crate::Result;
 use crate::accel::Accel;
 use crate::geometry::{Frame, UVec2, Vec2, Vec3A, luminance};
 use crate::photon::GridShape;
+use crate::photon::guide::pick_cell;
 use crate::sampler::{Domain, SampleStream};
 use crate::scene::SurfaceInteraction;
 
@@ -124,10 +125,7 @@ impl Integrator for Zvidpt {
         // and, rescaled, places the point inside it: the film point's density is `n·Pj`, and
         // the pixel's stratification carries over to its subpixels.
         let u = rng.pixel_2d();
-        let j = cdf.partition_point(|&c| c <= u.x).min(n - 1);
-        let below = if j > 0 { cdf[j - 1] } else { 0.0 };
-        let pj = cdf[j] - below;
-        let ux = ((u.x - below) / pj).clamp(0.0, 1.0 - f32::EPSILON);
+        let (j, pj, ux) = pick_cell(cdf, u.x);
         let film = pixel.as_vec2() + subpixel_point(shape, j, Vec2::new(ux, u.y));
         let ray = ctx.scene.camera.ray(film);
         scratch.rays += 1;

@@ -65,13 +65,24 @@ pub fn weights_to_cdf(w: &mut [f32], floor: f32) -> bool {
     true
 }
 
+/// Inverts a CDF over cells (as [`weights_to_cdf`] builds): the cell `u` falls in, its
+/// probability, and `u` rescaled to `[0, 1)` inside the cell (so one uniform number can pick
+/// the cell and then place a point in it). Zero-width cells are never picked.
+#[inline]
+#[must_use]
+pub fn pick_cell(cdf: &[f32], u: f32) -> (usize, f32, f32) {
+    let c = cdf.partition_point(|&x| x <= u).min(cdf.len() - 1);
+    let below = if c > 0 { cdf[c - 1] } else { 0.0 };
+    let p = cdf[c] - below;
+    (c, p, ((u - below) / p).clamp(0.0, 1.0 - f32::EPSILON))
+}
+
 /// Samples a direction from a grid given as a CDF over its cells. Returns the local direction
 /// (z = normal) and `Pc · |GL|`, so that `f·cosθ / pdf = f · π / (Pc·|GL|)`.
 #[inline]
 #[must_use]
 pub fn sample_cdf(shape: GridShape, cdf: &[f32], u_cell: f32, u: Vec2) -> (Vec3A, f32) {
-    let c = cdf.partition_point(|&x| x <= u_cell).min(cdf.len() - 1);
-    let pc = cdf[c] - if c > 0 { cdf[c - 1] } else { 0.0 };
+    let (c, pc, _) = pick_cell(cdf, u_cell);
     let (row, col) = (c as u32 / shape.cols, c as u32 % shape.cols);
     let uv = Vec2::new((row as f32 + u.x) / shape.rows as f32, (col as f32 + u.y) / shape.cols as f32);
     (warp::cosine_hemisphere(uv), pc * shape.cells() as f32)

@@ -103,8 +103,8 @@ pub enum LightSampling {
     /// A direction in the solid angle the triangle subtends (Arvo 1995), warped bilinearly by
     /// the cosine at the shading point's corners (as pbrt-v4 does), for emitters within reach
     /// (bounding radius ≥ [`NEAR_RATIO`] × distance, or grazing); others, and any below
-    /// [`spherical::MIN_SOLID_ANGLE`], by area. Bounded weights next to an emitter, where area sampling's
-    /// `cosθx·cosθy/d²` is unbounded.
+    /// [`spherical::MIN_SOLID_ANGLE`], by area. Bounded weights next to an emitter, where area
+    /// sampling's `cosθx·cosθy/d²` is unbounded.
     #[default]
     SolidAngle,
 }
@@ -264,10 +264,10 @@ impl Scene {
         let (i, pmf) = choice.sample(u_pick);
         let prim = self.emitters.prims[i];
         let v = &self.triangles[prim as usize];
-        let b = warp::uniform_triangle(u_point);
+        let (p, p_err) = point_on(v, warp::uniform_triangle(u_point));
         Some(EmitterSample {
-            p: v[0] * b[0] + v[1] * b[1] + v[2] * b[2],
-            p_err: barycentric_error(b, v),
+            p,
+            p_err,
             ng: self.normals[prim as usize],
             emission: self.material_of(prim).emission,
             pdf_area: pmf / self.emitters.areas[i],
@@ -306,24 +306,8 @@ impl Scene {
                     *w = self.weight(i, x, n);
                     total += *w;
                 }
-                if total.is_nan() || total <= 0.0 {
-                    return None;
-                }
-                // Invert the CDF of the weights; the last emitter with weight takes any rest.
-                let target = u_pick * total;
-                let mut acc = 0.0;
-                let mut pick = None;
-                for (i, &w) in weights.iter().enumerate().take(count) {
-                    if w > 0.0 {
-                        pick = Some(i);
-                        acc += w;
-                        if target < acc {
-                            break;
-                        }
-                    }
-                }
-                let i = pick?;
-                self.sample_solid_angle(i, weights[i] / total, x, n, u_point)
+                let (i, pmf) = warp::pick_by_weight(&weights[..count], total, u_pick)?;
+                self.sample_solid_angle(i, pmf, x, n, u_point)
             }
             LightSampling::SolidAngle => {
                 let (i, pmf) = choice.sample(u_pick);
@@ -388,8 +372,7 @@ impl Scene {
         if omega >= spherical::MIN_SOLID_ANGLE {
             return lum * omega as f32 * 0.25 * (w[0] + w[1] + w[2] + w[3]);
         }
-        let centroid = (v[0] + v[1] + v[2]) / 3.0;
-        let to = centroid - x;
+        let to = self.emitters.bounds[i].0 - x;
         let d2 = to.length_squared();
         let cos_y = (-self.normals[prim as usize].dot(to) / d2.sqrt()).max(0.0);
         let weight = lum * self.emitters.areas[i] * cos_y / d2 * cosines[0].max(cosines[1]).max(cosines[2]);
@@ -416,9 +399,10 @@ impl Scene {
         // triangle against rounding) so that the point carries the usual error bound.
         let b = barycentrics_along(x, dir, v)?;
         let inv_pdf = (st.solid_angle() / f64::from(pmf * pdf_u)) as f32;
+        let (p, p_err) = point_on(v, b);
         (inv_pdf.is_finite() && inv_pdf > 0.0).then(|| DirectSample {
-            p: v[0] * b[0] + v[1] * b[1] + v[2] * b[2],
-            p_err: barycentric_error(b, v),
+            p,
+            p_err,
             ng: self.normals[prim as usize],
             emission: self.material_of(prim).emission,
             inv_pdf,
@@ -430,15 +414,14 @@ impl Scene {
         let prim = self.emitters.prims[i];
         let v = &self.triangles[prim as usize];
         let ng = self.normals[prim as usize];
-        let b = warp::uniform_triangle(u_point);
-        let p = v[0] * b[0] + v[1] * b[1] + v[2] * b[2];
+        let (p, p_err) = point_on(v, warp::uniform_triangle(u_point));
         let to = p - x;
         let dist2 = to.length_squared();
         let cos_y = -ng.dot(to) / dist2.sqrt();
         let inv_pdf = cos_y * self.emitters.areas[i] / (dist2 * pmf);
         (inv_pdf.is_finite() && inv_pdf > 0.0).then(|| DirectSample {
             p,
-            p_err: barycentric_error(b, v),
+            p_err,
             ng,
             emission: self.material_of(prim).emission,
             inv_pdf,
@@ -456,6 +439,12 @@ pub const NEAR_RATIO: f32 = 0.5;
 /// Up to this many emitter triangles, solid-angle light sampling weighs every emitter at every
 /// shading point (a few Arvo set-ups); beyond it, emitters are chosen by power.
 pub const FEW_EMITTERS: usize = 8;
+
+/// The point of triangle `v` at barycentrics `b`, with its error bound.
+#[inline]
+fn point_on(v: &[Vec3A; 3], b: [f32; 3]) -> (Vec3A, Vec3A) {
+    (v[0] * b[0] + v[1] * b[1] + v[2] * b[2], barycentric_error(b, v))
+}
 
 /// Barycentrics of the point where the ray from `x` along `w` meets the plane of `v`, clamped
 /// into the triangle; `None` if the ray is parallel to the plane.
