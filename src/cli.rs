@@ -1,7 +1,9 @@
 //! The command line: `zvidpt render`, `zvidpt diff`.
 use crate::accel::{Accel, BackendKind, WithAccel, with_backend};
 use crate::film::{self, Image, Metadata};
-use crate::integrator::{Estimator, GuideSettings, Jensen, MAX_SUBPIXELS, PathTracer, Zvidpt};
+use crate::integrator::{
+    Estimator, GuideSettings, Jensen, LearnedSettings, LearnedZvidpt, MAX_SUBPIXELS, PathTracer, Roulette, Zvidpt,
+};
 use crate::photon::{GridShape, GuidePhotons, MAX_GUIDE_CELLS};
 use crate::render::{RenderSettings, RenderStats, render};
 use crate::scene::{LightSampling, Scene};
@@ -147,6 +149,9 @@ pub enum IntegratorKind {
     ZvidptTerminal,
     /// ZVIDPT, collision estimator.
     ZvidptCollision,
+    /// ZVIDPT with a learned importance function: guided directions, NEE at every vertex,
+    /// channel-aware zero-variance roulette and splitting of the indirect part.
+    Zvidpt,
 }
 
 /// On or off.
@@ -254,6 +259,36 @@ pub struct PhotonArgs {
     /// walk vertex (off, the paper's way; slower).
     #[arg(long, value_enum, default_value_t = Switch::On)]
     pub guide_cache: Switch,
+    /// zvidpt: how walks continue: a weight window on the expected indirect contribution
+    /// (splits too), the paper's q = L̃1/L̃r, or the path tracer's albedo rule.
+    #[arg(long, value_enum, default_value_t = Roulette::Window)]
+    pub roulette: Roulette,
+    /// zvidpt: samples a learned-guide cell must receive in a training iteration to be split
+    /// (× √2 per iteration; PPG's c).
+    #[arg(long, default_value_t = 4000)]
+    pub split_samples: u64,
+    /// zvidpt: training samples per pixel in all (iterations of 1, 2, 4, …) [default: half
+    /// of --spp; with --time, until training stops paying or half the budget is used].
+    #[arg(long)]
+    pub train_spp: Option<u32>,
+    /// zvidpt: fraction of directions drawn from the learned guide (the rest: cosine).
+    #[arg(long, default_value_t = 0.5)]
+    pub guide_mix: f32,
+    /// zvidpt: weight-window width s (no roulette or split while the expected contribution
+    /// ratio lies in [2/(1+s), 2s/(1+s)]).
+    #[arg(long, default_value_t = 5.0)]
+    pub window: f32,
+    /// zvidpt: most branches a vertex splits into.
+    #[arg(long, default_value_t = 8)]
+    pub max_split: u32,
+    /// zvidpt: a walk that roulette stops returns the learned L̃ind (continuations correct
+    /// it: unbiased, and no roulette noise where L̃ is exact) instead of 0.
+    #[arg(long, value_enum, default_value_t = Switch::On)]
+    pub roulette_cv: Switch,
+    /// jensen: guide with the learned importance function (PPG-style guided path tracing)
+    /// instead of the photon grid.
+    #[arg(long, value_enum, default_value_t = Switch::Off)]
+    pub learned_guide: Switch,
 }
 
 impl PhotonArgs {
@@ -271,6 +306,29 @@ impl PhotonArgs {
             guide_cache: Switch::On,
             q_max: 0.95,
             q_kappa: 1.0,
+            roulette: Roulette::Window,
+            split_samples: 4000,
+            train_spp: None,
+            guide_mix: 0.5,
+            window: 5.0,
+            max_split: 8,
+            roulette_cv: Switch::On,
+            learned_guide: Switch::Off,
+        }
+    }
+
+    /// The learned integrator's settings (`zvidpt`, or `jensen --learned-guide on`).
+    fn learned(&self, roulette: Roulette) -> LearnedSettings {
+        LearnedSettings {
+            photons: self.photons,
+            knn: self.knn,
+            split_samples: self.split_samples,
+            guide_mix: self.guide_mix,
+            roulette,
+            window: self.window,
+            max_split: self.max_split,
+            control_variate: self.roulette_cv == Switch::On && roulette != Roulette::Albedo,
+            train_spp: self.train_spp,
         }
     }
 
@@ -299,6 +357,20 @@ impl PhotonArgs {
         if !(self.q_max >= 0.05 && self.q_max < 1.0) {
             return Err(Error::InvalidOption("--q-max must lie in [0.05, 1)".into()));
         }
+        if !(16..=1 << 40).contains(&self.split_samples) {
+            return Err(Error::InvalidOption("--split-samples must lie in 16..=2^40".into()));
+        }
+        if !(self.guide_mix >= 0.0 && self.guide_mix < 1.0) {
+            return Err(Error::InvalidOption(
+                "--guide-mix must lie in [0, 1) (cosine sampling keeps every direction)".into(),
+            ));
+        }
+        if !(self.window.is_finite() && self.window >= 1.0) {
+            return Err(Error::InvalidOption("--window must be a number of at least 1".into()));
+        }
+        if !(1..=64).contains(&self.max_split) {
+            return Err(Error::InvalidOption("--max-split must lie in 1..=64".into()));
+        }
         Ok(())
     }
 
@@ -318,6 +390,14 @@ impl PhotonArgs {
             meta.push("q_max", self.q_max);
             meta.push("q_kappa", self.q_kappa);
             meta.push("guide", flag_name(self.guide));
+        }
+        if integrator == IntegratorKind::Zvidpt || self.learned_guide == Switch::On {
+            meta.push("roulette", flag_name(self.roulette));
+            meta.push("split_samples", self.split_samples);
+            meta.push("guide_mix", self.guide_mix);
+            meta.push("window", self.window);
+            meta.push("max_split", self.max_split);
+            meta.push("roulette_cv", flag_name(self.roulette_cv));
         }
     }
 }
@@ -396,7 +476,11 @@ impl WithAccel for RenderJob<'_> {
         let (scene, s) = (self.scene, self.settings);
         let (image, stats) = match self.integrator {
             IntegratorKind::Path => render(scene, accel, &mut PathTracer::default(), s)?,
+            IntegratorKind::Jensen if a.learned_guide == Switch::On => {
+                render(scene, accel, &mut LearnedZvidpt::new(a.learned(Roulette::Albedo)), s)?
+            }
             IntegratorKind::Jensen => render(scene, accel, &mut Jensen::new(guide.clone()), s)?,
+            IntegratorKind::Zvidpt => render(scene, accel, &mut LearnedZvidpt::new(a.learned(a.roulette)), s)?,
             IntegratorKind::ZvidptTerminal => render(scene, accel, &mut zvidpt(Estimator::Terminal), s)?,
             IntegratorKind::ZvidptCollision => render(scene, accel, &mut zvidpt(Estimator::Collision), s)?,
         };

@@ -14,6 +14,7 @@ pub mod converge;
 pub mod error;
 pub mod film;
 pub mod geometry;
+pub mod guide;
 pub mod integrator;
 pub mod photon;
 pub mod plot;

@@ -3,11 +3,13 @@
 //! built once before the pixel's first sample, and may run a pre-pass (the photon map).
 pub mod guided;
 mod jensen;
+pub mod learned;
 pub mod path;
 mod zvidpt;
 
 pub use guided::GuideSettings;
 pub use jensen::Jensen;
+pub use learned::{LearnedSettings, LearnedZvidpt, Roulette};
 pub use path::PathTracer;
 pub use zvidpt::{Estimator, MAX_SUBPIXELS, Zvidpt};
 
@@ -21,6 +23,12 @@ pub struct RenderContext<'a, A: Accel> {
     pub scene: &'a Scene,
     pub accel: &'a A,
     pub light_sampling: LightSampling,
+    /// When the render started (before the pre-pass) and its time budget, if any: an
+    /// integrator that trains in its pre-pass takes its share of the budget from these.
+    pub start: std::time::Instant,
+    pub time_limit: Option<f64>,
+    /// The final sample count asked for, if any.
+    pub spp: Option<u32>,
 }
 
 /// Per-tile tallies and scratch memory, owned by the tile being rendered: no shared counters

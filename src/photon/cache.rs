@@ -16,10 +16,10 @@ use std::collections::VecDeque;
 /// Records are kept apart by the dominant axis and sign of their normal, so that a lookup
 /// never returns a record from the other side of a wall or from a perpendicular wall at a
 /// corner.
-const BUCKETS: usize = 6;
+pub(crate) const BUCKETS: usize = 6;
 
 #[inline]
-fn bucket_of(n: Vec3A) -> usize {
+pub(crate) fn bucket_of(n: Vec3A) -> usize {
     let a = n.abs();
     let axis = if a.x >= a.y && a.x >= a.z {
         0

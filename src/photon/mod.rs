@@ -1,7 +1,7 @@
 //! The first pass (ALGORITHM.md §4): photons traced from the emitters and stored at every
 //! diffuse hit, in a kd-tree (kiddo) over positions with the payload kept apart
 //! (structure of arrays), and the radiance estimates and guide grids built from them.
-mod cache;
+pub(crate) mod cache;
 pub mod guide;
 
 pub use cache::{GuideCache, GuideRecord};
@@ -46,6 +46,8 @@ pub struct PhotonMap {
     pub normal: Vec<Vec3A>,
     /// Diffuse reflections before this hit (0: straight from an emitter).
     pub bounce: Vec<u8>,
+    /// Reflectance of the surface the photon landed on.
+    pub albedo: Vec<Vec3A>,
     /// Photon paths emitted.
     pub emitted: u64,
 }
@@ -64,6 +66,7 @@ struct Photon {
     incoming: Vec3A,
     normal: Vec3A,
     bounce: u8,
+    albedo: Vec3A,
 }
 
 impl PhotonMap {
@@ -108,6 +111,7 @@ impl PhotonMap {
             incoming: photons.iter().map(|p| p.incoming).collect(),
             normal: photons.iter().map(|p| p.normal).collect(),
             bounce: photons.iter().map(|p| p.bounce).collect(),
+            albedo: photons.iter().map(|p| p.albedo).collect(),
             emitted,
         })
     }
@@ -125,6 +129,18 @@ impl PhotonMap {
     #[must_use]
     pub fn position(&self, i: usize) -> Vec3A {
         self.positions[i]
+    }
+
+    /// The `k` photons nearest to `x` (indices) and the squared distance to the farthest.
+    /// Allocates: for pre-passes, never per walk vertex.
+    #[must_use]
+    pub fn nearest(&self, x: Vec3A, k: usize) -> (Vec<usize>, f32) {
+        let (Some(tree), Some(k)) = (&self.tree, NonZeroUsize::new(k)) else {
+            return (Vec::new(), 0.0);
+        };
+        let near = tree.query(&x.to_array()).nearest_n::<SquaredEuclidean<f32>>(k).execute();
+        let r2 = near.last().map_or(0.0, |r| r.distance);
+        (near.iter().map(|r| r.item as usize).collect(), r2)
     }
 
     /// One k-nearest query at `x` (shading normal `n`) gives the flux densities and, when
@@ -194,7 +210,7 @@ fn trace_photon_path<A: Accel>(scene: &Scene, accel: &A, seed: u64, index: u64) 
         if albedo == Vec3A::ZERO {
             break;
         }
-        out.push(Photon { p: si.p, flux, incoming: si.wo, normal: si.n, bounce });
+        out.push(Photon { p: si.p, flux, incoming: si.wo, normal: si.n, bounce, albedo });
         let q = survival_probability(albedo);
         if rng.next_f32() >= q {
             break;

@@ -175,8 +175,15 @@ fn render_in_pool<A: Accel, I: Integrator>(
     threads: usize,
 ) -> Result<(Image, RenderStats)> {
     let (width, height) = (scene.camera.width, scene.camera.height);
-    let ctx = RenderContext { scene, accel, light_sampling: settings.light_sampling };
     let start = Instant::now();
+    let ctx = RenderContext {
+        scene,
+        accel,
+        light_sampling: settings.light_sampling,
+        start,
+        time_limit: settings.time_limit,
+        spp: settings.spp,
+    };
     let prepass = integrator.prepare(&ctx, settings.seed)?;
     let prepass_seconds = start.elapsed().as_secs_f64();
     let integrator: &I = integrator;

@@ -1,0 +1,434 @@
+//! `zvidpt`: ZVIDPT with a learned importance function (issue "ZVIDPT that pays off").
+//!
+//! The paper's walk solves `Lr = L1 + ∫ f cos Lr(y) dω` from the camera. Here
+//! - `L̃` is learned from the render's own walks ([`crate::guide::LearnedGuide`]), seeded by
+//!   the photon map: training iterations of 1, 2, 4, … samples per pixel, each sampling from
+//!   the guide frozen at the end of the previous one;
+//! - directions come from a one-sample mixture of the learned `f·cos·L̃r` quadtree and cosine
+//!   sampling, weighted by the mixture's own density (unbiased whatever was learned);
+//! - direct light is collected by NEE at every vertex (collision style): on the ceiling beside
+//!   the light, where `L1 ≫ Lind`, the terminal estimator's `q` sat at its 0.95 cap and a
+//!   continuing walk carried 1/(1−q) = 20; here the direct part is never gambled;
+//! - only the indirect part is rouletted or split, by a weight window in the sense of
+//!   Vorba & Křivánek 2016 (ADRRS) on the walk's expected indirect contribution relative to
+//!   the pixel's, summed over the three channels (so a red wall's growing red weight counts
+//!   as red, not as luminance): a walk expected to contribute r times the pixel's indirect
+//!   light is split into r (r above the window) or survives with probability r (below it).
+//!   Under exact `L̃` and guiding this is ALGORITHM.md's zero-variance roulette applied to
+//!   `Lind`: the survival after k vertices is the product of `Lind/Lr` along the walk.
+//!
+//! `--roulette q` uses the paper's `q = L̃1/L̃r` (learned) instead, and `--roulette albedo`
+//! the path tracer's rule: with it, this is PPG-style guided path tracing
+//! (`--integrator jensen --learned-guide on`).
+use super::path::survival_probability;
+use super::{Integrator, RenderContext, Scratch, direct_light};
+use crate::Result;
+use crate::accel::Accel;
+use crate::geometry::{Frame, UVec2, Vec3A, luminance, warp};
+use crate::guide::{LearnedGuide, mixture_pdf};
+use crate::photon::PhotonMap;
+use crate::sampler::{Domain, SampleStream};
+use crate::scene::SurfaceInteraction;
+use rayon::prelude::*;
+use std::f32::consts::FRAC_1_PI;
+use std::time::Instant;
+
+/// How a walk decides whether (and how many times) to continue after a vertex.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Roulette {
+    /// Weight window on the expected indirect contribution, all channels (splits too).
+    Window,
+    /// The paper's zero-variance roulette: continue with probability `1 − q`, `q = L̃1/L̃r`.
+    Q,
+    /// The path tracer's: survival by albedo after 3 bounces (guided path tracing).
+    Albedo,
+}
+
+/// Settings of the learned integrator.
+#[derive(Clone, Debug)]
+pub struct LearnedSettings {
+    /// Photons seeding the guide (the paper's first pass) and photons per seed estimate.
+    pub photons: usize,
+    pub knn: usize,
+    /// Samples a guide cell must receive in an iteration to be split (× √2 per iteration;
+    /// PPG's c).
+    pub split_samples: u64,
+    /// Probability of sampling the learned density (the rest: cosine sampling).
+    pub guide_mix: f32,
+    pub roulette: Roulette,
+    /// Weight-window width `s`: no action while the expected contribution ratio lies in
+    /// `[2/(1+s), 2s/(1+s)]`.
+    pub window: f32,
+    /// Most branches one vertex splits into.
+    pub max_split: u32,
+    /// Roulette around the learned `L̃ind` (a stopped walk returns it) instead of around 0.
+    pub control_variate: bool,
+    /// Training samples per pixel in all (iterations 1, 2, 4, … while they fit); `None`: half
+    /// the final sample count, or by the time budget's rule under `--time`.
+    pub train_spp: Option<u32>,
+}
+
+impl Default for LearnedSettings {
+    fn default() -> Self {
+        Self {
+            photons: 6891,
+            knn: 50,
+            split_samples: 4000,
+            guide_mix: 0.5,
+            roulette: Roulette::Window,
+            window: 5.0,
+            max_split: 8,
+            control_variate: true,
+            train_spp: None,
+        }
+    }
+}
+
+/// One training iteration, as reported.
+#[derive(Clone, Copy, Debug)]
+pub struct Iteration {
+    pub spp: u32,
+    pub seconds: f64,
+    /// Mean over pixels of the per-sample variance (summed over channels).
+    pub variance: f64,
+}
+
+pub struct LearnedZvidpt {
+    pub settings: LearnedSettings,
+    pub guide: Option<LearnedGuide>,
+    pub iterations: Vec<Iteration>,
+}
+
+/// Most branches one camera sample may grow into (bounds the cost of a sample).
+const MAX_BRANCHES: u32 = 64;
+/// Below this survival probability the window does not go (bounds weights when `L̃` is off).
+const MIN_SURVIVAL: f32 = 0.02;
+/// Set-up rays per pixel for its reference indirect radiance.
+const SETUP_RAYS: u32 = 4;
+
+impl LearnedZvidpt {
+    #[must_use]
+    pub fn new(settings: LearnedSettings) -> Self {
+        Self { settings, guide: None, iterations: Vec::new() }
+    }
+
+    /// Training samples actually spent.
+    #[must_use]
+    pub fn training_spp(&self) -> u32 {
+        self.iterations.iter().map(|i| i.spp).sum()
+    }
+
+    /// The continuation factor at a vertex: the expected number of continuations (below 1: a
+    /// survival probability). Any positive value keeps the estimator unbiased, since each
+    /// continuation is weighted by its inverse.
+    #[inline]
+    fn continuation(
+        &self,
+        albedo: Vec3A,
+        weight: Vec3A,
+        reference: f32,
+        est: Option<crate::guide::CellEstimate>,
+        depth: u32,
+    ) -> f32 {
+        let f = match self.settings.roulette {
+            Roulette::Albedo => {
+                if depth >= 3 {
+                    survival_probability(albedo)
+                } else {
+                    1.0
+                }
+            }
+            Roulette::Q => match est {
+                Some(e) => {
+                    let (l1, lr) = (luminance(e.direct), luminance(e.direct + e.indirect));
+                    1.0 - if lr > 0.0 { (l1 / lr).clamp(0.05, 0.95) } else { 0.5 }
+                }
+                None => 0.5,
+            },
+            Roulette::Window => match est {
+                Some(e) => {
+                    let r = (weight * e.indirect).element_sum() / reference;
+                    let s = self.settings.window;
+                    let lower = 2.0 / (1.0 + s);
+                    if r.is_nan() {
+                        1.0
+                    } else if r < lower || r > s * lower {
+                        r.clamp(MIN_SURVIVAL, self.settings.max_split as f32)
+                    } else {
+                        1.0
+                    }
+                }
+                None => survival_probability(albedo),
+            },
+        };
+        // Long walks end: beyond 32 vertices at most 0.8 survive (unbiased, and the chance of
+        // a walk deeper than 500 is below 1e-45), and deep vertices never split.
+        if depth >= 32 { f.min(0.8) } else { f }
+    }
+
+    /// An unbiased estimate of `Lr` leaving `si` towards `si.wo`, from a walk (tree, when
+    /// split) carrying path weight `weight`; deposits what it learns when the guide learns.
+    #[allow(clippy::too_many_arguments)]
+    fn reflected<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        guide: &LearnedGuide,
+        si: &SurfaceInteraction,
+        weight: Vec3A,
+        reference: f32,
+        depth: u32,
+        branches: u32,
+        rng: &mut SampleStream,
+        scratch: &mut Scratch,
+    ) -> Vec3A {
+        let albedo = si.material.diffuse;
+        if albedo == Vec3A::ZERO {
+            return Vec3A::ZERO;
+        }
+        let direct = direct_light(ctx, si, rng, scratch);
+        let cell = guide.cell(si.p, si.n);
+        let est = guide.estimate(cell);
+        let mut f = self.continuation(albedo, weight, reference, est, depth);
+        if f > 1.0 && (depth >= 16 || branches * (f.ceil() as u32) > MAX_BRANCHES) {
+            f = 1.0;
+        }
+        // Stochastic rounding: n continuations with E[n] = f, each weighted 1/f.
+        let u = rng.next_f32();
+        let n = f.floor() as u32 + u32::from(u < f - f.floor());
+        let mut indirect = Vec3A::ZERO;
+        if n > 0 {
+            let frame = Frame::from_normal(si.n);
+            let alpha = if guide.has_tree(cell) { self.settings.guide_mix } else { 0.0 };
+            let learning = guide.learning();
+            for _ in 0..n {
+                let u_pick = rng.next_f32();
+                let u_dir = rng.next_2d();
+                // Local directions (z = normal); the learned density from the leaf a guided
+                // direction came from, or looked up for a cosine one.
+                let (local, learned) = if u_pick < alpha {
+                    guide.sample(cell, u_dir)
+                } else {
+                    let w = warp::cosine_hemisphere(u_dir);
+                    (w, if alpha > 0.0 { guide.pdf(cell, w) } else { 0.0 })
+                };
+                let cos = local.z;
+                if cos <= 0.0 {
+                    continue;
+                }
+                let wi = frame.to_world(local);
+                let pdf = mixture_pdf(alpha, learned, cos);
+                // f·cosθ/pdf for a Lambertian surface.
+                let throughput = albedo * (cos * FRAC_1_PI / pdf);
+                let ray = si.spawn_ray(wi);
+                scratch.rays += 1;
+                let li = match ctx.accel.intersect(&ray) {
+                    Some(hit) => {
+                        let next = ctx.scene.interaction(&ray, &hit);
+                        self.reflected(
+                            ctx,
+                            guide,
+                            &next,
+                            weight * throughput / f,
+                            reference,
+                            depth + 1,
+                            branches * n,
+                            rng,
+                            scratch,
+                        )
+                    }
+                    None => Vec3A::ZERO,
+                };
+                indirect += throughput * li;
+                if learning {
+                    // The zero-variance target f·cos·Lr: Σ_channels (ρ/π·Lr)·cos / pdf.
+                    guide.deposit_direction(cell, local, (albedo * li).element_sum() * cos * FRAC_1_PI / pdf);
+                }
+            }
+        }
+        // Roulette and splitting around the learned value (a control variate): a walk that
+        // stops returns `L̃ind`, and the continuations correct it, `X = L̃ind + Σᵢ(Sᵢ − L̃ind)/f`.
+        // E[X] = L̃ind + E[n]·(Lind − L̃ind)/f = Lind for any `L̃ind`, and a stopped walk costs
+        // `(Lind − L̃ind)²` instead of `Lind²`: with an exact `L̃` the roulette adds no noise,
+        // which is ALGORITHM.md's zero-variance termination in collision form.
+        let cv = match est {
+            Some(e) if self.settings.control_variate => e.indirect,
+            _ => Vec3A::ZERO,
+        };
+        let indirect = cv + (indirect - cv * n as f32) / f;
+        guide.deposit_estimates(cell, si.p, direct, indirect);
+        direct + indirect
+    }
+
+    /// The pixel's reference indirect radiance (summed over channels) for the weight window:
+    /// the mean learned `L̃ind` at the first hits of a few set-up rays.
+    fn pixel_reference<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        guide: &LearnedGuide,
+        pixel: UVec2,
+        seed: u64,
+        scratch: &mut Scratch,
+    ) -> f32 {
+        let index = pixel.y as u64 * ctx.scene.camera.width as u64 + pixel.x as u64;
+        let mut rng = SampleStream::in_domain(Domain::PixelSetup, seed, index, 1);
+        let mut sum = 0.0;
+        for _ in 0..SETUP_RAYS {
+            let ray = ctx.scene.camera.ray(pixel.as_vec2() + rng.next_2d());
+            scratch.rays += 1;
+            if let Some(hit) = ctx.accel.intersect(&ray) {
+                let si = ctx.scene.interaction(&ray, &hit);
+                if let Some(e) = guide.estimate(guide.cell(si.p, si.n)) {
+                    sum += e.indirect.element_sum();
+                }
+            }
+        }
+        (sum / SETUP_RAYS as f32).max(1e-4)
+    }
+
+    /// One camera sample: emission seen directly, plus the walk's estimate of `Lr`.
+    #[allow(clippy::too_many_arguments)]
+    fn camera_sample<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        guide: &LearnedGuide,
+        pixel: UVec2,
+        reference: f32,
+        rng: &mut SampleStream,
+        scratch: &mut Scratch,
+    ) -> Vec3A {
+        let ray = ctx.scene.camera.ray(pixel.as_vec2() + rng.pixel_2d());
+        scratch.rays += 1;
+        let Some(hit) = ctx.accel.intersect(&ray) else {
+            return Vec3A::ZERO;
+        };
+        let si = ctx.scene.interaction(&ray, &hit);
+        si.emitted() + self.reflected(ctx, guide, &si, Vec3A::ONE, reference, 0, 1, rng, scratch)
+    }
+
+    /// One training iteration over the whole image at `spp`: returns the mean per-sample
+    /// variance (channels summed) over pixels.
+    fn train_pass<A: Accel>(&self, ctx: &RenderContext<A>, guide: &LearnedGuide, seed: u64, spp: u32) -> (f64, u64) {
+        let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
+        let rows: Vec<(f64, u64)> = (0..height)
+            .into_par_iter()
+            .map(|y| {
+                let mut scratch = Scratch::default();
+                let mut variance = 0.0f64;
+                for x in 0..width {
+                    let pixel = UVec2::new(x, y);
+                    let reference = self.pixel_reference(ctx, guide, pixel, seed, &mut scratch);
+                    let (mut sum, mut sum_sq) = (0.0f64, 0.0f64);
+                    for s in 0..spp {
+                        let mut rng = SampleStream::new(seed, y * width + x, s);
+                        let v = self.camera_sample(ctx, guide, pixel, reference, &mut rng, &mut scratch);
+                        if v.is_finite() {
+                            let v = v.element_sum() as f64;
+                            sum += v;
+                            sum_sq += v * v;
+                        }
+                    }
+                    if spp > 1 {
+                        let n = spp as f64;
+                        variance += ((sum_sq - sum * sum / n) / (n - 1.0)).max(0.0);
+                    }
+                }
+                (variance, scratch.rays)
+            })
+            .collect();
+        let variance = rows.iter().map(|r| r.0).sum::<f64>() / (width as f64 * height as f64);
+        (variance, rows.iter().map(|r| r.1).sum())
+    }
+}
+
+/// The stream seed of training iteration `k` (never the final render's).
+fn training_seed(seed: u64, k: u32) -> u64 {
+    seed ^ (0x7A41_4E00_0000_0000 | (k as u64 + 1) << 40)
+}
+
+impl Integrator for LearnedZvidpt {
+    type PixelState = f32;
+
+    fn name(&self) -> &'static str {
+        match self.settings.roulette {
+            Roulette::Albedo => "jensen-learned",
+            _ => "zvidpt",
+        }
+    }
+
+    fn prepare<A: Accel>(&mut self, ctx: &RenderContext<A>, seed: u64) -> Result<Option<String>> {
+        let start = Instant::now();
+        let map = PhotonMap::build(ctx.scene, ctx.accel, self.settings.photons, seed)?;
+        let mut guide = LearnedGuide::seed(ctx.scene, &map, self.settings.knn)?;
+        guide.split_samples = self.settings.split_samples;
+        let seeded = start.elapsed().as_secs_f64();
+        drop(map);
+        self.iterations.clear();
+        // Training budget: iterations of 1, 2, 4, … spp. With a sample count, their total
+        // stays within `train_spp` (half the final count by default); with a time budget,
+        // training goes on while the last iteration made the render more efficient (variance
+        // × seconds per sample fell) and the next one would end before half the budget.
+        let spp_budget = self.settings.train_spp.or_else(|| ctx.spp.map(|n| (n / 2).max(1)));
+        let time_budget = if spp_budget.is_none() { ctx.time_limit } else { None };
+        let mut spent = 0u32;
+        let mut last_cost = f64::INFINITY;
+        for k in 0..16u32 {
+            let spp = 1u32 << k;
+            if let Some(b) = spp_budget
+                && spent + spp > b
+            {
+                break;
+            }
+            if let (Some(t), Some(last)) = (time_budget, self.iterations.last()) {
+                let elapsed = ctx.start.elapsed().as_secs_f64();
+                if elapsed + 2.0 * last.seconds > 0.5 * t {
+                    break;
+                }
+            }
+            let t = Instant::now();
+            guide.begin_iteration();
+            let (variance, _rays) = self.train_pass(ctx, &guide, training_seed(seed, k), spp);
+            guide.end_iteration(k)?;
+            let seconds = t.elapsed().as_secs_f64();
+            spent += spp;
+            self.iterations.push(Iteration { spp, seconds, variance });
+            if time_budget.is_some() && k >= 1 {
+                // Variance per sample × seconds per sample: the final render's error per unit
+                // time if it used this iteration's guide.
+                let cost = variance * seconds / spp as f64;
+                if cost > 0.9 * last_cost {
+                    break;
+                }
+                last_cost = cost;
+            } else if time_budget.is_some() {
+                last_cost = variance * seconds / spp as f64;
+            }
+        }
+        let stats = guide.stats();
+        self.guide = Some(guide);
+        let training: Vec<String> = self.iterations.iter().map(|i| format!("{}", i.spp)).collect();
+        Ok(Some(format!(
+            "photon seed {:.3} s; guide {stats}; training {} spp ({}) in {:.2} s",
+            seeded,
+            spent,
+            if training.is_empty() { "none".to_string() } else { training.join("+") },
+            self.iterations.iter().map(|i| i.seconds).sum::<f64>()
+        )))
+    }
+
+    fn setup_pixel<A: Accel>(&self, ctx: &RenderContext<A>, pixel: UVec2, seed: u64, scratch: &mut Scratch) -> f32 {
+        let guide = self.guide.as_ref().expect("prepare() builds the guide");
+        self.pixel_reference(ctx, guide, pixel, seed, scratch)
+    }
+
+    fn sample<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        pixel: UVec2,
+        reference: &f32,
+        rng: &mut SampleStream,
+        scratch: &mut Scratch,
+    ) -> Vec3A {
+        let guide = self.guide.as_ref().expect("prepare() builds the guide");
+        self.camera_sample(ctx, guide, pixel, *reference, rng, scratch)
+    }
+}
