@@ -44,14 +44,41 @@ fn area(a: DVec3, b: DVec3, c: DVec3) -> f64 {
     2.0 * a.dot(b.cross(c)).abs().atan2(1.0 + a.dot(b) + b.dot(c) + c.dot(a))
 }
 
-/// The solid angle of triangle `v` seen from `x` and the cosines `n·a, n·b, n·c` at its corner
-/// directions: what choosing among emitters needs, without the sampler's set-up.
+/// What choosing among parts of an emitter needs about one part, in f32 (the choice's
+/// probabilities only need to be computed the same way each time, not exactly).
+#[derive(Clone, Copy, Debug)]
+pub struct PartStats {
+    /// `∫ n·ω dω` over the part (Lambert's formula, signed).
+    pub projected: f32,
+    /// Solid angle.
+    pub omega: f32,
+    /// `n·ω` at the corner directions.
+    pub cosines: [f32; 3],
+}
+
+/// [`PartStats`] of triangle `v` seen from `x` with normal `n`; `None` on a corner.
+#[inline]
 #[must_use]
-pub fn solid_angle_and_cosines(x: Vec3A, v: &[Vec3A; 3], n: Vec3A) -> Option<(f64, [f32; 3])> {
-    let [a, b, c] = corners(x, v)?;
-    let n = n.as_dvec3();
-    let omega = area(a, b, c);
-    omega.is_finite().then_some((omega, [n.dot(a) as f32, n.dot(b) as f32, n.dot(c) as f32]))
+pub fn part_stats(x: Vec3A, v: &[Vec3A; 3], n: Vec3A) -> Option<PartStats> {
+    let a = (v[0] - x).try_normalize()?;
+    let b = (v[1] - x).try_normalize()?;
+    let c = (v[2] - x).try_normalize()?;
+    let triple = a.dot(b.cross(c));
+    let omega = 2.0 * triple.abs().atan2(1.0 + a.dot(b) + b.dot(c) + c.dot(a));
+    let mut sum = 0.0;
+    for (p, q) in [(a, b), (b, c), (c, a)] {
+        let cross = p.cross(q);
+        let len = cross.length();
+        if len > 0.0 {
+            sum += len.atan2(p.dot(q)) * n.dot(cross) / len;
+        }
+    }
+    let projected = 0.5 * sum * triple.signum();
+    (omega.is_finite() && projected.is_finite()).then_some(PartStats {
+        projected,
+        omega,
+        cosines: [n.dot(a), n.dot(b), n.dot(c)],
+    })
 }
 
 /// Corner weights for [`crate::geometry::warp::bilinear`] in the layout of

@@ -86,6 +86,14 @@ pub fn bilinear_pdf(p: Vec2, w: [f32; 4]) -> f32 {
 #[inline]
 #[must_use]
 pub fn pick_by_weight(weights: &[f32], total: f32, u: f32) -> Option<(usize, f32)> {
+    pick_by_weight_reusing(weights, total, u).map(|(i, p, _)| (i, p))
+}
+
+/// As [`pick_by_weight`], also returning `u` rescaled to `[0, 1)` within the picked item's
+/// share: uniform again and independent of the pick, so one number can pick and then place.
+#[inline]
+#[must_use]
+pub fn pick_by_weight_reusing(weights: &[f32], total: f32, u: f32) -> Option<(usize, f32, f32)> {
     if total.is_nan() || total <= 0.0 {
         return None;
     }
@@ -94,14 +102,14 @@ pub fn pick_by_weight(weights: &[f32], total: f32, u: f32) -> Option<(usize, f32
     let mut pick = None;
     for (i, &w) in weights.iter().enumerate() {
         if w > 0.0 {
-            pick = Some(i);
+            pick = Some((i, acc));
             acc += w;
             if target < acc {
                 break;
             }
         }
     }
-    pick.map(|i| (i, weights[i] / total))
+    pick.map(|(i, below)| (i, weights[i] / total, ((target - below) / weights[i]).clamp(0.0, 1.0 - f32::EPSILON)))
 }
 
 /// A discrete distribution over `n` items by weight, sampled by inverting its CDF.

@@ -363,14 +363,17 @@ impl Scene {
             let weight = lum * self.emitters.areas[i] * cos_y.max(0.0) / d2 * cos_x.max(0.1 * radius / d);
             return if weight.is_finite() && weight > 0.0 { weight } else { f32::MIN_POSITIVE };
         }
-        let Some((omega, cosines)) = spherical::solid_angle_and_cosines(x, v, n) else {
+        let Some(part) = spherical::part_stats(x, v, n) else {
             return 0.0;
         };
-        let Some(w) = spherical::cosine_warp_weights(cosines) else {
+        let cosines = part.cosines;
+        if spherical::cosine_warp_weights(cosines).is_none() {
             return 0.0;
-        };
-        if omega >= spherical::MIN_SOLID_ANGLE {
-            return lum * omega as f32 * 0.25 * (w[0] + w[1] + w[2] + w[3]);
+        }
+        if f64::from(part.omega) >= spherical::MIN_SOLID_ANGLE {
+            // The unoccluded ∫cosθ dω (Lambert), floored at 1% of Ω where the triangle
+            // straddles the horizon.
+            return lum * part.projected.max(0.01 * part.omega);
         }
         let to = self.emitters.bounds[i].0 - x;
         let d2 = to.length_squared();
@@ -382,7 +385,7 @@ impl Scene {
     /// A point on emitter `i` (chosen with probability `pmf`) by solid angle: Arvo's uniform
     /// direction warped bilinearly towards the corners with the larger cosine at `x`, so that
     /// the weight `cosθx/pdf` is nearly constant; by area below [`spherical::MIN_SOLID_ANGLE`].
-    fn sample_solid_angle(&self, i: usize, pmf: f32, x: Vec3A, n: Vec3A, u_point: Vec2) -> Option<DirectSample> {
+    fn sample_solid_angle(&self, i: usize, pmf: f32, x: Vec3A, n: Vec3A, mut u_point: Vec2) -> Option<DirectSample> {
         let prim = self.emitters.prims[i];
         let v = &self.triangles[prim as usize];
         if self.far(i, x).is_some() {
@@ -391,15 +394,56 @@ impl Scene {
         let Some(st) = SphericalTriangle::new(x, v).filter(|st| st.solid_angle() >= spherical::MIN_SOLID_ANGLE) else {
             return self.sample_area(i, pmf, x, u_point);
         };
+        // Where the cosine at `x` varies much over the triangle (it can peak inside, away from
+        // the corners the warp interpolates: on the ceiling 0.03 above the light, next to its
+        // edge), the triangle is cut in four by its edge midpoints, again and again, each time
+        // descending into one part chosen by its estimated contribution (solid angle × mean
+        // corner cosine), until the cosine varies little over the part. The parts tile the
+        // emitter exactly, so the density is the product of the choices' probabilities times
+        // the warp's density in the final part.
+        let mut tri = *v;
+        let mut pmf = pmf;
+        let mut part =
+            spherical::PartStats { projected: 0.0, omega: st.solid_angle() as f32, cosines: st.corner_cosines(n) };
+        let mut cut = false;
+        for _ in 0..MAX_NEE_SUBDIVISIONS {
+            // Stop on what is known of the current part only (never on the part a number
+            // picks), so that the density below is the one sampled.
+            let c = part.cosines;
+            let (lo, hi) = (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
+            let smooth = part.omega < SUBDIVIDE_SOLID_ANGLE as f32 && lo > 0.0 && hi < COSINE_SPREAD * lo;
+            if smooth || part.omega < 64.0 * spherical::MIN_SOLID_ANGLE as f32 {
+                break;
+            }
+            let (m01, m12, m20) = ((tri[0] + tri[1]) * 0.5, (tri[1] + tri[2]) * 0.5, (tri[2] + tri[0]) * 0.5);
+            let parts = [[tri[0], m01, m20], [m01, tri[1], m12], [m20, m12, tri[2]], [m01, m12, m20]];
+            let mut stats = [part; 4];
+            let mut weights = [0.0f32; 4];
+            for ((w, st), p) in weights.iter_mut().zip(&mut stats).zip(&parts) {
+                // Each part's unoccluded contribution ∫cosθ dω (Lambert, f32: only the choice
+                // depends on it), floored at 1% of its Ω so that no part the cosine reaches
+                // is left out.
+                if let Some(ps) = spherical::part_stats(x, p, n) {
+                    *st = ps;
+                    *w = ps.projected.max(0.01 * ps.omega);
+                }
+            }
+            // `u.x` picks the part; rescaled, it is uniform again for what follows.
+            let total = weights.iter().sum();
+            let (k, p, ux) = warp::pick_by_weight_reusing(&weights, total, u_point.x)?;
+            (tri, part, pmf, u_point.x, cut) = (parts[k], stats[k], pmf * p, ux, true);
+        }
+        // A part of at least 64·MIN_SOLID_ANGLE / 4 steradians: Arvo's construction is sound.
+        let st = if cut { SphericalTriangle::new(x, &tri)? } else { st };
         let w = st.cosine_warp_weights(n)?;
         let u = warp::bilinear(u_point, w);
         let pdf_u = warp::bilinear_pdf(u, w);
         let dir = st.sample(u);
         // Where the sampled direction meets the triangle, as barycentrics (clamped into the
         // triangle against rounding) so that the point carries the usual error bound.
-        let b = barycentrics_along(x, dir, v)?;
+        let b = barycentrics_along(x, dir, &tri)?;
         let inv_pdf = (st.solid_angle() / f64::from(pmf * pdf_u)) as f32;
-        let (p, p_err) = point_on(v, b);
+        let (p, p_err) = point_on(&tri, b);
         (inv_pdf.is_finite() && inv_pdf > 0.0).then(|| DirectSample {
             p,
             p_err,
@@ -445,6 +489,13 @@ pub const FEW_EMITTERS: usize = 8;
 fn point_on(v: &[Vec3A; 3], b: [f32; 3]) -> (Vec3A, Vec3A) {
     (v[0] * b[0] + v[1] * b[1] + v[2] * b[2], barycentric_error(b, v))
 }
+
+/// NEE keeps cutting an emitter triangle (see [`Scene::sample_solid_angle`]) while its solid
+/// angle exceeds this (steradians) or its corner cosines differ by more than [`COSINE_SPREAD`]×,
+/// at most [`MAX_NEE_SUBDIVISIONS`] times.
+pub const SUBDIVIDE_SOLID_ANGLE: f64 = 0.05;
+pub const COSINE_SPREAD: f32 = 1.5;
+pub const MAX_NEE_SUBDIVISIONS: u32 = 6;
 
 /// Barycentrics of the point where the ray from `x` along `w` meets the plane of `v`, clamped
 /// into the triangle; `None` if the ray is parallel to the plane.
@@ -567,6 +618,35 @@ mod tests {
                 let z = (mean - std::f64::consts::PI) / se;
                 assert!(z.abs() < 4.5, "{strategy:?} at triangle {prim}: {mean} ± {se} vs π (z {z})");
             }
+        }
+    }
+
+    /// Next to the light, where the cosine at the shading point peaks between the emitter's
+    /// corners, solid-angle NEE cuts the emitter down to parts the cosine warp can follow: one
+    /// sample's relative deviation on the ceiling beside and above the cornell-paper light
+    /// stays below 0.05 (it was 0.42 and 0.41 with the corner warp over whole triangles; 200k
+    /// samples, fixed seed), and the mean stays Lambert's exact value within 5 standard errors.
+    #[test]
+    fn solid_angle_nee_is_nearly_exact_beside_the_light() {
+        let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell-paper")).unwrap();
+        let n = -Vec3A::Y;
+        for x in [Vec3A::new(0.0, 0.999, 0.21), Vec3A::new(0.1, 0.999, 0.1), Vec3A::new(0.3, 0.999, 0.25)] {
+            let mut rng = SampleStream::new(1, 2, 3);
+            let (mut sum, mut sum_sq, m) = (0.0f64, 0.0f64, 200_000);
+            for _ in 0..m {
+                let (u, v) = (rng.next_f32(), rng.next_2d());
+                let value = scene
+                    .sample_emitter_from(x, n, LightSampling::SolidAngle, u, v)
+                    .map_or(0.0, |l| f64::from(n.dot((l.p - x).normalize()).max(0.0) * l.inv_pdf));
+                sum += value;
+                sum_sq += value * value;
+            }
+            let mean = sum / m as f64;
+            let sd = (sum_sq / m as f64 - mean * mean).max(0.0).sqrt();
+            let exact = projected_solid_angle(&scene, x, n);
+            eprintln!("{x}: {mean:.4} (exact {exact:.4}), relative deviation {:.3}", sd / mean);
+            assert!(sd / mean < 0.05, "{x}: relative deviation {}", sd / mean);
+            assert!((mean - exact).abs() < 5.0 * sd / (m as f64).sqrt(), "{x}: {mean} vs {exact}");
         }
     }
 }
