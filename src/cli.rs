@@ -271,9 +271,14 @@ pub struct PhotonArgs {
     /// of --spp; with --time, until training stops paying or half the budget is used].
     #[arg(long)]
     pub train_spp: Option<u32>,
-    /// zvidpt: fraction of directions drawn from the learned guide (the rest: cosine).
+    /// zvidpt: fraction of directions drawn from the learned guide (the rest: cosine); with
+    /// --learn-mix on, each guide cell starts from it and then picks its own.
     #[arg(long, default_value_t = 0.5)]
     pub guide_mix: f32,
+    /// zvidpt: each guide cell learns its fraction (by the second moment of the directions'
+    /// weights under each candidate), or all keep --guide-mix.
+    #[arg(long, value_enum, default_value_t = Switch::On)]
+    pub learn_mix: Switch,
     /// zvidpt: weight-window width s (no roulette or split while the expected contribution
     /// ratio lies in [2/(1+s), 2s/(1+s)]).
     #[arg(long, default_value_t = 5.0)]
@@ -310,6 +315,7 @@ impl PhotonArgs {
             split_samples: 4000,
             train_spp: None,
             guide_mix: 0.5,
+            learn_mix: Switch::On,
             window: 5.0,
             max_split: 8,
             roulette_cv: Switch::On,
@@ -324,6 +330,7 @@ impl PhotonArgs {
             knn: self.knn,
             split_samples: self.split_samples,
             guide_mix: self.guide_mix,
+            learn_mix: self.learn_mix == Switch::On,
             roulette,
             window: self.window,
             max_split: self.max_split,
@@ -395,6 +402,7 @@ impl PhotonArgs {
             meta.push("roulette", flag_name(self.roulette));
             meta.push("split_samples", self.split_samples);
             meta.push("guide_mix", self.guide_mix);
+            meta.push("learn_mix", flag_name(self.learn_mix));
             meta.push("window", self.window);
             meta.push("max_split", self.max_split);
             meta.push("roulette_cv", flag_name(self.roulette_cv));

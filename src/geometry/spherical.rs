@@ -44,8 +44,7 @@ fn area(a: DVec3, b: DVec3, c: DVec3) -> f64 {
     2.0 * a.dot(b.cross(c)).abs().atan2(1.0 + a.dot(b) + b.dot(c) + c.dot(a))
 }
 
-/// What choosing among parts of an emitter needs about one part, in f32 (the choice's
-/// probabilities only need to be computed the same way each time, not exactly).
+/// What choosing among parts of an emitter needs about one part.
 #[derive(Clone, Copy, Debug)]
 pub struct PartStats {
     /// `∫ n·ω dω` over the part (Lambert's formula, signed).
@@ -60,11 +59,13 @@ pub struct PartStats {
 #[inline]
 #[must_use]
 pub fn part_stats(x: Vec3A, v: &[Vec3A; 3], n: Vec3A) -> Option<PartStats> {
-    let a = (v[0] - x).try_normalize()?;
-    let b = (v[1] - x).try_normalize()?;
-    let c = (v[2] - x).try_normalize()?;
+    // f64: next to a triangle (a point on its neighbour, seen edge-on) the triple product and
+    // Lambert's sum cancel to a few digits, and an f32 result was noise that put a part with
+    // most of the contribution at the 1% floor (weights 100× too large, in the furnace).
+    let [a, b, c] = corners(x, v)?;
+    let n = n.as_dvec3();
     let triple = a.dot(b.cross(c));
-    let omega = 2.0 * triple.abs().atan2(1.0 + a.dot(b) + b.dot(c) + c.dot(a));
+    let omega = area(a, b, c);
     let mut sum = 0.0;
     for (p, q) in [(a, b), (b, c), (c, a)] {
         let cross = p.cross(q);
@@ -75,9 +76,9 @@ pub fn part_stats(x: Vec3A, v: &[Vec3A; 3], n: Vec3A) -> Option<PartStats> {
     }
     let projected = 0.5 * sum * triple.signum();
     (omega.is_finite() && projected.is_finite()).then_some(PartStats {
-        projected,
-        omega,
-        cosines: [n.dot(a), n.dot(b), n.dot(c)],
+        projected: projected as f32,
+        omega: omega as f32,
+        cosines: [n.dot(a) as f32, n.dot(b) as f32, n.dot(c) as f32],
     })
 }
 

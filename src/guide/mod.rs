@@ -53,6 +53,9 @@ pub struct CellEstimate {
     pub direct: Vec3A,
     /// `L̃ind`: reflected light that bounced at least once.
     pub indirect: Vec3A,
+    /// Averaged from walks' unbiased estimates (rather than a photon density estimate, which
+    /// with few photons can be off by orders of magnitude).
+    pub from_walks: bool,
 }
 
 /// What the guide holds, for reports.
@@ -104,9 +107,23 @@ pub struct LearnedGuide {
     /// Per cell, summed over iterations: direct RGB, indirect RGB (fixed point), samples.
     sums: Vec<[AtomicU64; 7]>,
     spread: Vec<Spread>,
+    /// Per cell: the probability of sampling its tree (the rest: cosine sampling), and this
+    /// iteration's estimates of the second moment of a direction's weight for each candidate
+    /// in [`MIX_CANDIDATES`].
+    mix: Vec<f32>,
+    moments: Vec<[AtomicU64; MIX_CANDIDATES.len()]>,
+    /// Whether the mixture probability is learned (or stays at its initial value).
+    pub learn_mix: bool,
     /// Samples a cell must have received in an iteration to be split.
     pub split_samples: u64,
 }
+
+/// The tree-sampling probabilities a cell chooses from, by the second moment each would have
+/// given this iteration's directions (one-sample MIS: a direction drawn with density `p` is
+/// weighted `g/(α·p_tree + (1−α)·p_cos)`; its second moment under any `α` is estimated from
+/// the same samples by `g²/(p_α·p)`). In the furnace, where cosine sampling is exact, cells
+/// choose 0; where light comes from a small bright patch, 0.75–0.9.
+pub const MIX_CANDIDATES: [f32; 5] = [0.0, 0.25, 0.5, 0.75, 0.9];
 
 fn fresh<const N: usize>(n: usize) -> Vec<[AtomicU64; N]> {
     (0..n).map(|_| std::array::from_fn(|_| AtomicU64::new(0))).collect()
@@ -139,6 +156,9 @@ impl LearnedGuide {
             filling: None,
             sums: Vec::new(),
             spread: Vec::new(),
+            mix: Vec::new(),
+            moments: Vec::new(),
+            learn_mix: true,
             split_samples: 4000,
         };
         for b in 0..BUCKETS {
@@ -217,6 +237,7 @@ impl LearnedGuide {
         }
         guide.sums = fresh::<7>(cells);
         guide.spread = fresh::<7>(cells);
+        guide.mix = vec![0.5; cells];
         Ok(guide)
     }
 
@@ -274,6 +295,7 @@ impl LearnedGuide {
             if !self.estimates.is_empty() {
                 self.estimates = parent_of.iter().map(|&p| self.estimates[p]).collect();
                 self.known = parent_of.iter().map(|&p| self.known[p]).collect();
+                self.mix = parent_of.iter().map(|&p| self.mix[p]).collect();
                 let mut children = vec![0u32; cells];
                 for &p in &parent_of {
                     children[p] += 1;
@@ -367,6 +389,7 @@ impl LearnedGuide {
         let acc = (0..8 * forest.nodes.len()).map(|_| AtomicU64::new(0)).collect();
         self.filling = Some(Filling { forest, acc });
         self.spread = fresh::<7>(self.cells());
+        self.moments = fresh::<{ MIX_CANDIDATES.len() }>(self.cells());
     }
 
     /// Whether an iteration is running (walks deposit only then).
@@ -385,6 +408,32 @@ impl LearnedGuide {
             let (node, q) = f.forest.leaf_of(cell, warp::cosine_hemisphere_inverse(w));
             f.acc[8 * node + 2 * q].fetch_add(to_fixed(value as f64), Ordering::Relaxed);
             f.acc[8 * node + 2 * q + 1].fetch_add(1, Ordering::Relaxed);
+        }
+    }
+
+    /// The probability of sampling `cell`'s tree (the rest: cosine sampling).
+    #[inline]
+    #[must_use]
+    pub fn mix(&self, cell: usize) -> f32 {
+        if self.has_tree(cell) { self.mix[cell] } else { 0.0 }
+    }
+
+    /// Sets every cell's tree-sampling probability (before learning it, or for good).
+    pub fn set_mix(&mut self, alpha: f32) {
+        self.mix.iter_mut().for_each(|m| *m = alpha);
+    }
+
+    /// Records, for the choice of `cell`'s mixture probability, one direction whose integrand
+    /// is `g` (`f·cos·Lr`, summed over channels), drawn with density `p_drawn`, where the tree
+    /// has density `p_tree` and cosine sampling `p_cos`.
+    #[inline]
+    pub fn deposit_moments(&self, cell: usize, g: f32, p_drawn: f32, p_tree: f32, p_cos: f32) {
+        if self.filling.is_none() || !self.learn_mix || !(g > 0.0 && p_drawn > 0.0) {
+            return;
+        }
+        for (m, a) in self.moments[cell].iter().zip(MIX_CANDIDATES) {
+            let p = a * p_tree + (1.0 - a) * p_cos;
+            m.fetch_add(to_fixed(f64::from(g) * f64::from(g) / (f64::from(p) * f64::from(p_drawn))), Ordering::Relaxed);
         }
     }
 
@@ -427,7 +476,16 @@ impl LearnedGuide {
                 let mean = |c: usize| (from_fixed(s[c].load(Ordering::Relaxed)) / n as f64) as f32;
                 e.direct = Vec3A::new(mean(0), mean(1), mean(2));
                 e.indirect = Vec3A::new(mean(3), mean(4), mean(5));
+                e.from_walks = true;
                 *known = true;
+            }
+        }
+        if self.learn_mix {
+            for ((mix, m), s) in self.mix.iter_mut().zip(&self.moments).zip(&self.spread) {
+                if s[0].load(Ordering::Relaxed) >= MIN_TREE_SAMPLES {
+                    let best = (0..MIX_CANDIDATES.len()).min_by_key(|&i| m[i].load(Ordering::Relaxed)).unwrap_or(2);
+                    *mix = MIX_CANDIDATES[best];
+                }
             }
         }
         let limit = (self.split_samples as f64 * 2f64.powf(k as f64 * 0.5)) as u64;

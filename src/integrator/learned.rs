@@ -21,7 +21,7 @@
 //! the path tracer's rule: with it, this is PPG-style guided path tracing
 //! (`--integrator jensen --learned-guide on`).
 use super::path::survival_probability;
-use super::{Integrator, RenderContext, Scratch, direct_light};
+use super::{Integrator, PriorSamples, RenderContext, Scratch, direct_light};
 use crate::Result;
 use crate::accel::Accel;
 use crate::geometry::{Frame, UVec2, Vec3A, luminance, warp};
@@ -53,8 +53,11 @@ pub struct LearnedSettings {
     /// Samples a guide cell must receive in an iteration to be split (× √2 per iteration;
     /// PPG's c).
     pub split_samples: u64,
-    /// Probability of sampling the learned density (the rest: cosine sampling).
+    /// Probability of sampling the learned density (the rest: cosine sampling): fixed, or the
+    /// start of each cell's learned probability.
     pub guide_mix: f32,
+    /// Learn each cell's probability (see [`crate::guide::MIX_CANDIDATES`]).
+    pub learn_mix: bool,
     pub roulette: Roulette,
     /// Weight-window width `s`: no action while the expected contribution ratio lies in
     /// `[2/(1+s), 2s/(1+s)]`.
@@ -75,6 +78,7 @@ impl Default for LearnedSettings {
             knn: 50,
             split_samples: 4000,
             guide_mix: 0.5,
+            learn_mix: true,
             roulette: Roulette::Window,
             window: 5.0,
             max_split: 8,
@@ -97,19 +101,25 @@ pub struct LearnedZvidpt {
     pub settings: LearnedSettings,
     pub guide: Option<LearnedGuide>,
     pub iterations: Vec<Iteration>,
+    /// The last training iteration's samples, which the image includes.
+    prior: Option<PriorSamples>,
 }
+
+/// Under a time budget, training iterations run while the next would end within this
+/// fraction of it.
+pub const TRAIN_FRACTION: f64 = 0.35;
 
 /// Most branches one camera sample may grow into (bounds the cost of a sample).
 const MAX_BRANCHES: u32 = 64;
 /// Below this survival probability the window does not go (bounds weights when `L̃` is off).
-const MIN_SURVIVAL: f32 = 0.02;
+const MIN_SURVIVAL: f32 = 0.05;
 /// Set-up rays per pixel for its reference indirect radiance.
 const SETUP_RAYS: u32 = 4;
 
 impl LearnedZvidpt {
     #[must_use]
     pub fn new(settings: LearnedSettings) -> Self {
-        Self { settings, guide: None, iterations: Vec::new() }
+        Self { settings, guide: None, iterations: Vec::new(), prior: None }
     }
 
     /// Training samples actually spent.
@@ -198,7 +208,7 @@ impl LearnedZvidpt {
         let mut indirect = Vec3A::ZERO;
         if n > 0 {
             let frame = Frame::from_normal(si.n);
-            let alpha = if guide.has_tree(cell) { self.settings.guide_mix } else { 0.0 };
+            let alpha = guide.mix(cell);
             let learning = guide.learning();
             for _ in 0..n {
                 let u_pick = rng.next_f32();
@@ -209,7 +219,8 @@ impl LearnedZvidpt {
                     guide.sample(cell, u_dir)
                 } else {
                     let w = warp::cosine_hemisphere(u_dir);
-                    (w, if alpha > 0.0 { guide.pdf(cell, w) } else { 0.0 })
+                    let tree = alpha > 0.0 || (learning && guide.has_tree(cell));
+                    (w, if tree { guide.pdf(cell, w) } else { 0.0 })
                 };
                 let cos = local.z;
                 if cos <= 0.0 {
@@ -241,7 +252,9 @@ impl LearnedZvidpt {
                 indirect += throughput * li;
                 if learning {
                     // The zero-variance target f·cos·Lr: Σ_channels (ρ/π·Lr)·cos / pdf.
-                    guide.deposit_direction(cell, local, (albedo * li).element_sum() * cos * FRAC_1_PI / pdf);
+                    let g = (albedo * li).element_sum() * cos * FRAC_1_PI;
+                    guide.deposit_direction(cell, local, g / pdf);
+                    guide.deposit_moments(cell, g, pdf, learned, cos * FRAC_1_PI);
                 }
             }
         }
@@ -250,8 +263,10 @@ impl LearnedZvidpt {
         // E[X] = L̃ind + E[n]·(Lind − L̃ind)/f = Lind for any `L̃ind`, and a stopped walk costs
         // `(Lind − L̃ind)²` instead of `Lind²`: with an exact `L̃` the roulette adds no noise,
         // which is ALGORITHM.md's zero-variance termination in collision form.
+        // Only walk-learned values serve: a stopped walk costs (Lind − L̃ind)², and a photon
+        // density from a starved map can be orders of magnitude off.
         let cv = match est {
-            Some(e) if self.settings.control_variate => e.indirect,
+            Some(e) if self.settings.control_variate && e.from_walks => e.indirect,
             _ => Vec3A::ZERO,
         };
         let indirect = cv + (indirect - cv * n as f32) / f;
@@ -306,37 +321,60 @@ impl LearnedZvidpt {
     }
 
     /// One training iteration over the whole image at `spp`: returns the mean per-sample
-    /// variance (channels summed) over pixels.
-    fn train_pass<A: Accel>(&self, ctx: &RenderContext<A>, guide: &LearnedGuide, seed: u64, spp: u32) -> (f64, u64) {
+    /// variance (channels summed) over pixels, and each pixel's sums when `keep` (the last
+    /// iteration's samples go into the image).
+    fn train_pass<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        guide: &LearnedGuide,
+        seed: u64,
+        spp: u32,
+        keep: bool,
+    ) -> (f64, Option<PriorSamples>) {
         let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
-        let rows: Vec<(f64, u64)> = (0..height)
+        type Row = (f64, Vec<[f64; 3]>, Vec<[f64; 3]>);
+        let rows: Vec<Row> = (0..height)
             .into_par_iter()
             .map(|y| {
                 let mut scratch = Scratch::default();
                 let mut variance = 0.0f64;
+                let (mut sums, mut squares) = (Vec::new(), Vec::new());
                 for x in 0..width {
                     let pixel = UVec2::new(x, y);
                     let reference = self.pixel_reference(ctx, guide, pixel, seed, &mut scratch);
-                    let (mut sum, mut sum_sq) = (0.0f64, 0.0f64);
+                    let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
                     for s in 0..spp {
                         let mut rng = SampleStream::new(seed, y * width + x, s);
                         let v = self.camera_sample(ctx, guide, pixel, reference, &mut rng, &mut scratch);
-                        if v.is_finite() {
-                            let v = v.element_sum() as f64;
-                            sum += v;
-                            sum_sq += v * v;
+                        let v = if v.is_finite() { v } else { Vec3A::ZERO };
+                        for c in 0..3 {
+                            sum[c] += f64::from(v[c]);
+                            sum_sq[c] += f64::from(v[c]) * f64::from(v[c]);
                         }
                     }
                     if spp > 1 {
-                        let n = spp as f64;
-                        variance += ((sum_sq - sum * sum / n) / (n - 1.0)).max(0.0);
+                        let n = f64::from(spp);
+                        variance +=
+                            (0..3).map(|c| ((sum_sq[c] - sum[c] * sum[c] / n) / (n - 1.0)).max(0.0)).sum::<f64>();
+                    }
+                    if keep {
+                        sums.push(sum);
+                        squares.push(sum_sq);
                     }
                 }
-                (variance, scratch.rays)
+                (variance, sums, squares)
             })
             .collect();
-        let variance = rows.iter().map(|r| r.0).sum::<f64>() / (width as f64 * height as f64);
-        (variance, rows.iter().map(|r| r.1).sum())
+        let variance = rows.iter().map(|r| r.0).sum::<f64>() / (f64::from(width) * f64::from(height));
+        let prior = keep.then(|| {
+            let (mut sum, mut sum_sq) = (Vec::new(), Vec::new());
+            for (_, s, q) in rows {
+                sum.extend(s);
+                sum_sq.extend(q);
+            }
+            PriorSamples { spp, sum, sum_sq }
+        });
+        (variance, prior)
     }
 }
 
@@ -360,59 +398,77 @@ impl Integrator for LearnedZvidpt {
         let map = PhotonMap::build(ctx.scene, ctx.accel, self.settings.photons, seed)?;
         let mut guide = LearnedGuide::seed(ctx.scene, &map, self.settings.knn)?;
         guide.split_samples = self.settings.split_samples;
+        guide.set_mix(self.settings.guide_mix);
+        guide.learn_mix = self.settings.learn_mix;
         let seeded = start.elapsed().as_secs_f64();
         drop(map);
         self.iterations.clear();
         // Training budget: iterations of 1, 2, 4, … spp. With a sample count, their total
-        // stays within `train_spp` (half the final count by default); with a time budget,
-        // training goes on while the last iteration made the render more efficient (variance
-        // × seconds per sample fell) and the next one would end before half the budget.
+        // stays within `train_spp` (half the final count by default). With a time budget,
+        // iterations run while the next (about twice the last) would end within
+        // TRAIN_FRACTION of the budget. Either way the rule never looks at the samples' values,
+        // so the last iteration's samples can go into the image with equal weights, unbiased.
         let spp_budget = self.settings.train_spp.or_else(|| ctx.spp.map(|n| (n / 2).max(1)));
         let time_budget = if spp_budget.is_none() { ctx.time_limit } else { None };
-        let mut spent = 0u32;
-        let mut last_cost = f64::INFINITY;
-        for k in 0..16u32 {
-            let spp = 1u32 << k;
-            if let Some(b) = spp_budget
-                && spent + spp > b
-            {
-                break;
-            }
-            if let (Some(t), Some(last)) = (time_budget, self.iterations.last()) {
-                let elapsed = ctx.start.elapsed().as_secs_f64();
-                if elapsed + 2.0 * last.seconds > 0.5 * t {
+        let mut schedule = Vec::new();
+        if let Some(b) = spp_budget {
+            let mut spent = 0u32;
+            for k in 0..16u32 {
+                if spent + (1 << k) > b {
                     break;
                 }
+                spent += 1 << k;
+                schedule.push(1u32 << k);
             }
+        }
+        self.prior = None;
+        let mut spent = 0u32;
+        for k in 0..16u32 {
+            let spp = 1u32 << k;
+            let last = match time_budget {
+                None => {
+                    if k as usize >= schedule.len() {
+                        break;
+                    }
+                    k as usize + 1 == schedule.len()
+                }
+                Some(t) => {
+                    // An iteration takes about twice its predecessor (first: an estimate).
+                    let elapsed = ctx.start.elapsed().as_secs_f64();
+                    let next = self.iterations.last().map_or(0.0, |i| 2.0 * i.seconds);
+                    if k > 0 && elapsed + next > TRAIN_FRACTION * t {
+                        break;
+                    }
+                    false
+                }
+            };
             let t = Instant::now();
             guide.begin_iteration();
-            let (variance, _rays) = self.train_pass(ctx, &guide, training_seed(seed, k), spp);
+            let keep = last || time_budget.is_some();
+            let (variance, prior) = self.train_pass(ctx, &guide, training_seed(seed, k), spp, keep);
             guide.end_iteration(k)?;
             let seconds = t.elapsed().as_secs_f64();
             spent += spp;
             self.iterations.push(Iteration { spp, seconds, variance });
-            if time_budget.is_some() && k >= 1 {
-                // Variance per sample × seconds per sample: the final render's error per unit
-                // time if it used this iteration's guide.
-                let cost = variance * seconds / spp as f64;
-                if cost > 0.9 * last_cost {
-                    break;
-                }
-                last_cost = cost;
-            } else if time_budget.is_some() {
-                last_cost = variance * seconds / spp as f64;
+            if prior.is_some() {
+                self.prior = prior;
             }
         }
         let stats = guide.stats();
         self.guide = Some(guide);
         let training: Vec<String> = self.iterations.iter().map(|i| format!("{}", i.spp)).collect();
         Ok(Some(format!(
-            "photon seed {:.3} s; guide {stats}; training {} spp ({}) in {:.2} s",
+            "photon seed {:.3} s; guide {stats}; training {} spp ({}) in {:.2} s, the last {} in the image",
             seeded,
             spent,
             if training.is_empty() { "none".to_string() } else { training.join("+") },
-            self.iterations.iter().map(|i| i.seconds).sum::<f64>()
+            self.iterations.iter().map(|i| i.seconds).sum::<f64>(),
+            self.prior.as_ref().map_or(0, |p| p.spp)
         )))
+    }
+
+    fn prior_samples(&self) -> Option<&PriorSamples> {
+        self.prior.as_ref()
     }
 
     fn setup_pixel<A: Accel>(&self, ctx: &RenderContext<A>, pixel: UVec2, seed: u64, scratch: &mut Scratch) -> f32 {

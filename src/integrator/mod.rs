@@ -31,6 +31,14 @@ pub struct RenderContext<'a, A: Accel> {
     pub spp: Option<u32>,
 }
 
+/// Per-pixel sums of samples taken before the render's passes (row-major, linear RGB).
+#[derive(Clone, Debug, Default)]
+pub struct PriorSamples {
+    pub spp: u32,
+    pub sum: Vec<[f64; 3]>,
+    pub sum_sq: Vec<[f64; 3]>,
+}
+
 /// Per-tile tallies and scratch memory, owned by the tile being rendered: no shared counters
 /// and no allocation in the sample loop (pbrt's per-thread scratch).
 #[derive(Clone, Debug, Default)]
@@ -52,6 +60,13 @@ pub trait Integrator: Sync + Send {
     /// what it built, if anything.
     fn prepare<A: Accel>(&mut self, _ctx: &RenderContext<A>, _seed: u64) -> crate::Result<Option<String>> {
         Ok(None)
+    }
+
+    /// Samples the pre-pass already took of every pixel (unbiased, each from a fixed
+    /// distribution), to be averaged into the image with the render's own: per-sample weights
+    /// all equal, never chosen from the samples' values. `None` for most integrators.
+    fn prior_samples(&self) -> Option<&PriorSamples> {
+        None
     }
 
     /// Set-up for one pixel, once, before its first sample.

@@ -60,6 +60,9 @@ pub struct RenderStats {
     pub prepass: Option<String>,
     /// Samples dropped for being NaN or infinite (0 for a correct integrator).
     pub non_finite: u64,
+    /// Samples per pixel the pre-pass took and the image includes (training samples of a
+    /// learning integrator), beyond `spp`.
+    pub prior_spp: u32,
 }
 
 impl RenderStats {
@@ -111,7 +114,9 @@ impl<S: Send + Sync> Tile<S> {
                 for s in first..first + count {
                     let mut rng = SampleStream::new(seed, index, s);
                     let v = integrator.sample(ctx, pixel, &self.state[i], &mut rng, &mut scratch);
-                    debug_assert!(v.is_finite() && v.min_element() >= 0.0, "sample {v} at {pixel}");
+                    // (A sample may be negative: `zvidpt`'s roulette around a control variate
+                    // is unbiased with signed samples.)
+                    debug_assert!(v.is_finite(), "sample {v} at {pixel}");
                     // Never silently: a non-finite sample is counted and reported.
                     let v = if v.is_finite() {
                         v
@@ -203,6 +208,22 @@ fn render_in_pool<A: Accel, I: Integrator>(
             });
         }
     }
+    if let Some(prior) = integrator.prior_samples() {
+        if prior.sum.len() != (width * height) as usize || prior.sum_sq.len() != prior.sum.len() {
+            return Err(Error::InvalidOption("pre-pass samples do not match the image size".into()));
+        }
+        for tile in &mut tiles {
+            for y in 0..tile.size.y {
+                for x in 0..tile.size.x {
+                    let (i, j) =
+                        ((y * tile.size.x + x) as usize, ((tile.origin.y + y) * width + tile.origin.x + x) as usize);
+                    tile.sum[i] = prior.sum[j];
+                    tile.sum_sq[i] = prior.sum_sq[j];
+                }
+            }
+        }
+    }
+    let prior_spp = integrator.prior_samples().map_or(0, |p| p.spp);
     let bar = progress_bar(settings);
     tiles.par_iter_mut().for_each(|tile| {
         let mut scratch = Scratch::default();
@@ -230,7 +251,7 @@ fn render_in_pool<A: Accel, I: Integrator>(
     let seconds = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
 
-    let n = done as f64;
+    let n = (done + prior_spp) as f64;
     let mut pixels = vec![[0.0f32; 3]; (width * height) as usize];
     let mut variance = vec![[0.0f32; 3]; pixels.len()];
     let (mut rays, mut non_finite) = (0, 0);
@@ -243,7 +264,7 @@ fn render_in_pool<A: Accel, I: Integrator>(
                 let mean = tile.sum[i][c] / n;
                 pixels[j][c] = mean as f32;
                 variance[j][c] =
-                    if done > 1 { ((tile.sum_sq[i][c] - n * mean * mean) / (n - 1.0)).max(0.0) as f32 } else { 0.0 };
+                    if n > 1.0 { ((tile.sum_sq[i][c] - n * mean * mean) / (n - 1.0)).max(0.0) as f32 } else { 0.0 };
             }
         }
     }
@@ -256,8 +277,9 @@ fn render_in_pool<A: Accel, I: Integrator>(
         threads,
         prepass,
         non_finite,
+        prior_spp,
     };
-    Ok((Image { width, height, pixels, variance: Some(variance), spp: done }, stats))
+    Ok((Image { width, height, pixels, variance: Some(variance), spp: done + prior_spp }, stats))
 }
 
 fn progress_bar(settings: &RenderSettings) -> ProgressBar {
