@@ -276,8 +276,8 @@ pub struct PhotonArgs {
     #[arg(long, default_value_t = 0.5)]
     pub guide_mix: f32,
     /// zvidpt: each guide cell learns its fraction (by the second moment of the directions'
-    /// weights under each candidate), or all keep --guide-mix.
-    #[arg(long, value_enum, default_value_t = Switch::On)]
+    /// weights under each candidate), or all keep --guide-mix (the default: see README).
+    #[arg(long, value_enum, default_value_t = Switch::Off)]
     pub learn_mix: Switch,
     /// zvidpt: weight-window width s (no roulette or split while the expected contribution
     /// ratio lies in [2/(1+s), 2s/(1+s)]).
@@ -315,7 +315,7 @@ impl PhotonArgs {
             split_samples: 4000,
             train_spp: None,
             guide_mix: 0.5,
-            learn_mix: Switch::On,
+            learn_mix: Switch::Off,
             window: 5.0,
             max_split: 8,
             roulette_cv: Switch::On,

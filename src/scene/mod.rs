@@ -417,7 +417,7 @@ impl Scene {
             let c = part.cosines;
             let (lo, hi) = (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
             let smooth = part.omega < SUBDIVIDE_SOLID_ANGLE as f32 && lo > 0.0 && hi < COSINE_SPREAD * lo;
-            if smooth || part.omega < 64.0 * spherical::MIN_SOLID_ANGLE as f32 {
+            if smooth || part.omega < 0.01 {
                 break;
             }
             let (m01, m12, m20) = ((tri[0] + tri[1]) * 0.5, (tri[1] + tri[2]) * 0.5, (tri[2] + tri[0]) * 0.5);
