@@ -565,6 +565,11 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     args.photon.describe(integrator, &mut meta);
     meta.push("scene_hash", format!("{:016x}", scene.content_hash()));
     meta.push("threads", stats.threads);
+    if stats.prior_spp > 0 {
+        // The image averages these pre-pass (training) samples with the `spp` final ones.
+        meta.push("final_spp", stats.spp);
+        meta.push("training_spp_in_image", stats.prior_spp);
+    }
     meta.push("rays", stats.rays);
     meta.push("version", crate::VERSION);
     film::write_exr(&args.output, &image, &meta)?;
@@ -578,11 +583,12 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         warn!("warning: {} samples were NaN or infinite and were dropped", stats.non_finite);
     }
     out!(
-        "{} {}x{}, {} spp, {:.2} s{}, {:.2} M samples/s, {:.2} M rays/s ({}, {}, {} threads) -> {}{}",
+        "{} {}x{}, {} spp{}, {:.2} s{}, {:.2} M samples/s, {:.2} M rays/s ({}, {}, {} threads) -> {}{}",
         scene.name,
         image.width,
         image.height,
         stats.spp,
+        if stats.prior_spp > 0 { format!(" (+{} training spp in the image)", stats.prior_spp) } else { String::new() },
         stats.seconds,
         if stats.prepass.is_some() { format!(" (pre-pass {:.2} s)", stats.prepass_seconds) } else { String::new() },
         stats.samples_per_second() / 1e6,
