@@ -150,10 +150,10 @@ impl LearnedGuide {
         if scene.triangles.is_empty() {
             (lo, hi) = (Vec3A::ZERO, Vec3A::ONE);
         }
-        let pad = 1e-3 * (hi - lo).max_element().max(1e-3);
-        let (lo, hi) = (lo - Vec3A::splat(pad), hi + Vec3A::splat(pad));
+        // Positions in the spread sums are taken relative to a corner just below the scene.
+        let origin = lo - Vec3A::splat(1e-3 * (hi - lo).max_element().max(1e-3));
         let mut guide = Self {
-            origin: lo,
+            origin,
             nodes: Vec::new(),
             roots: [0; BUCKETS],
             trees: Forest::default(),
@@ -171,7 +171,6 @@ impl LearnedGuide {
             guide.roots[b] = guide.nodes.len() as u32;
             guide.nodes.push(SpatialNode { child: 0, axis: 0, split: 0.0, cell: b as u32, depth: 0 });
         }
-        let _ = hi;
         // Split by photon positions until no cell holds more than PHOTONS_PER_CELL photons.
         let mut cells = BUCKETS;
         for _round in 0..MAX_SPATIAL_DEPTH {

@@ -96,8 +96,6 @@ impl Default for LearnedSettings {
 pub struct Iteration {
     pub spp: u32,
     pub seconds: f64,
-    /// Mean over pixels of the per-sample variance (summed over channels).
-    pub variance: f64,
 }
 
 pub struct LearnedZvidpt {
@@ -265,9 +263,9 @@ impl LearnedZvidpt {
         // stops returns `L̃ind`, and the continuations correct it, `X = L̃ind + Σᵢ(Sᵢ − L̃ind)/f`.
         // E[X] = L̃ind + E[n]·(Lind − L̃ind)/f = Lind for any `L̃ind`, and a stopped walk costs
         // `(Lind − L̃ind)²` instead of `Lind²`: with an exact `L̃` the roulette adds no noise,
-        // which is ALGORITHM.md's zero-variance termination in collision form.
-        // Only walk-learned values serve: a stopped walk costs (Lind − L̃ind)², and a photon
-        // density from a starved map can be orders of magnitude off.
+        // which is ALGORITHM.md's zero-variance termination in collision form. Only
+        // walk-learned values serve: a photon density from a starved map can be orders of
+        // magnitude off.
         let cv = match est {
             Some(e) if self.settings.control_variate && e.from_walks => e.indirect,
             _ => Vec3A::ZERO,
@@ -323,9 +321,8 @@ impl LearnedZvidpt {
         si.emitted() + self.reflected(ctx, guide, &si, Vec3A::ONE, reference, 0, 1, rng, scratch)
     }
 
-    /// One training iteration over the whole image at `spp`: returns the mean per-sample
-    /// variance (channels summed) over pixels, and each pixel's sums when `keep` (the last
-    /// iteration's samples go into the image).
+    /// One training iteration over the whole image at `spp`, depositing into the guide; with
+    /// `keep`, each pixel's sums (the last iteration's samples go into the image).
     fn train_pass<A: Accel>(
         &self,
         ctx: &RenderContext<A>,
@@ -333,15 +330,13 @@ impl LearnedZvidpt {
         seed: u64,
         spp: u32,
         keep: bool,
-    ) -> (f64, Option<PriorSamples>) {
+    ) -> Option<PriorSamples> {
         let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
-        type Row = (f64, Vec<[f64; 3]>, Vec<[f64; 3]>);
-        let rows: Vec<Row> = (0..height)
+        let rows: Vec<Vec<([f64; 3], [f64; 3])>> = (0..height)
             .into_par_iter()
             .map(|y| {
                 let mut scratch = Scratch::default();
-                let mut variance = 0.0f64;
-                let (mut sums, mut squares) = (Vec::new(), Vec::new());
+                let mut row = Vec::new();
                 for x in 0..width {
                     let pixel = UVec2::new(x, y);
                     let reference = self.pixel_reference(ctx, guide, pixel, seed, &mut scratch);
@@ -355,29 +350,17 @@ impl LearnedZvidpt {
                             sum_sq[c] += f64::from(v[c]) * f64::from(v[c]);
                         }
                     }
-                    if spp > 1 {
-                        let n = f64::from(spp);
-                        variance +=
-                            (0..3).map(|c| ((sum_sq[c] - sum[c] * sum[c] / n) / (n - 1.0)).max(0.0)).sum::<f64>();
-                    }
                     if keep {
-                        sums.push(sum);
-                        squares.push(sum_sq);
+                        row.push((sum, sum_sq));
                     }
                 }
-                (variance, sums, squares)
+                row
             })
             .collect();
-        let variance = rows.iter().map(|r| r.0).sum::<f64>() / (f64::from(width) * f64::from(height));
-        let prior = keep.then(|| {
-            let (mut sum, mut sum_sq) = (Vec::new(), Vec::new());
-            for (_, s, q) in rows {
-                sum.extend(s);
-                sum_sq.extend(q);
-            }
+        keep.then(|| {
+            let (sum, sum_sq) = rows.into_iter().flatten().unzip();
             PriorSamples { spp, sum, sum_sq }
-        });
-        (variance, prior)
+        })
     }
 }
 
@@ -413,29 +396,19 @@ impl Integrator for LearnedZvidpt {
         // so the last iteration's samples can go into the image with equal weights, unbiased.
         let spp_budget = self.settings.train_spp.or_else(|| ctx.spp.map(|n| (n / 2).max(1)));
         let time_budget = if spp_budget.is_none() { ctx.time_limit } else { None };
-        let mut schedule = Vec::new();
-        if let Some(b) = spp_budget {
-            let mut spent = 0u32;
-            for k in 0..16u32 {
-                if spent + (1 << k) > b {
-                    break;
-                }
-                spent += 1 << k;
-                schedule.push(1u32 << k);
-            }
-        }
+        // Iterations that fit the sample budget: 1 + 2 + … + 2^(k−1) = 2^k − 1 ≤ budget.
+        let planned = spp_budget.map(|b| (u64::from(b) + 1).ilog2().min(16));
         self.prior = None;
-        let mut spent = 0u32;
         for k in 0..16u32 {
             let spp = 1u32 << k;
-            let last = match time_budget {
-                None => {
-                    if k as usize >= schedule.len() {
+            let last = match (planned, time_budget) {
+                (Some(n), _) => {
+                    if k >= n {
                         break;
                     }
-                    k as usize + 1 == schedule.len()
+                    k + 1 == n
                 }
-                Some(t) => {
+                (None, Some(t)) => {
                     // An iteration takes about twice its predecessor (first: an estimate).
                     let elapsed = ctx.start.elapsed().as_secs_f64();
                     let next = self.iterations.last().map_or(0.0, |i| 2.0 * i.seconds);
@@ -444,15 +417,13 @@ impl Integrator for LearnedZvidpt {
                     }
                     false
                 }
+                (None, None) => break,
             };
             let t = Instant::now();
             guide.begin_iteration();
-            let keep = last || time_budget.is_some();
-            let (variance, prior) = self.train_pass(ctx, &guide, training_seed(seed, k), spp, keep);
+            let prior = self.train_pass(ctx, &guide, training_seed(seed, k), spp, last || time_budget.is_some());
             guide.end_iteration(k)?;
-            let seconds = t.elapsed().as_secs_f64();
-            spent += spp;
-            self.iterations.push(Iteration { spp, seconds, variance });
+            self.iterations.push(Iteration { spp, seconds: t.elapsed().as_secs_f64() });
             if prior.is_some() {
                 self.prior = prior;
             }
@@ -463,7 +434,7 @@ impl Integrator for LearnedZvidpt {
         Ok(Some(format!(
             "photon seed {:.3} s; guide {stats}; training {} spp ({}) in {:.2} s, the last {} in the image",
             seeded,
-            spent,
+            self.training_spp(),
             if training.is_empty() { "none".to_string() } else { training.join("+") },
             self.iterations.iter().map(|i| i.seconds).sum::<f64>(),
             self.prior.as_ref().map_or(0, |p| p.spp)

@@ -213,13 +213,11 @@ fn render_in_pool<A: Accel, I: Integrator>(
             return Err(Error::InvalidOption("pre-pass samples do not match the image size".into()));
         }
         for tile in &mut tiles {
-            for y in 0..tile.size.y {
-                for x in 0..tile.size.x {
-                    let (i, j) =
-                        ((y * tile.size.x + x) as usize, ((tile.origin.y + y) * width + tile.origin.x + x) as usize);
-                    tile.sum[i] = prior.sum[j];
-                    tile.sum_sq[i] = prior.sum_sq[j];
-                }
+            let pixels: Vec<(usize, UVec2)> = tile.pixels().collect();
+            for (i, p) in pixels {
+                let j = (p.y * width + p.x) as usize;
+                tile.sum[i] = prior.sum[j];
+                tile.sum_sq[i] = prior.sum_sq[j];
             }
         }
     }
