@@ -71,7 +71,7 @@ pub enum Command {
 #[derive(Debug, Args)]
 pub struct ReferenceArgs {
     /// Scene file, or a folder holding `scene.toml`.
-    #[arg(default_value = "scenes/cornell-paper")]
+    #[arg(default_value = DEFAULT_SCENE)]
     pub scene: PathBuf,
     #[command(flatten)]
     pub machine: MachineArgs,
@@ -95,7 +95,7 @@ pub struct ReferenceArgs {
 #[derive(Debug, Args)]
 pub struct ConvergeArgs {
     /// Scene file, or a folder holding `scene.toml`.
-    #[arg(default_value = "scenes/cornell-paper")]
+    #[arg(default_value = DEFAULT_SCENE)]
     pub scene: PathBuf,
     #[command(flatten)]
     pub machine: MachineArgs,
@@ -164,7 +164,7 @@ pub enum Switch {
 #[derive(Debug, Args)]
 pub struct RenderArgs {
     /// Scene file, or a folder holding `scene.toml`.
-    #[arg(default_value = "scenes/cornell-paper")]
+    #[arg(default_value = DEFAULT_SCENE)]
     pub scene: PathBuf,
     #[command(flatten)]
     pub machine: MachineArgs,
@@ -268,17 +268,22 @@ pub struct PhotonArgs {
     #[arg(long, default_value_t = 4000)]
     pub split_samples: u64,
     /// zvidpt: training samples per pixel in all (iterations of 1, 2, 4, …) [default: half
-    /// of --spp; with --time, until training stops paying or half the budget is used].
+    /// of --spp; with --time, iterations while the next would end within 35% of the budget].
     #[arg(long)]
     pub train_spp: Option<u32>,
     /// zvidpt: fraction of directions drawn from the learned guide (the rest: cosine); with
     /// --learn-mix on, each guide cell starts from it and then picks its own.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.75)]
     pub guide_mix: f32,
     /// zvidpt: each guide cell learns its fraction (by the second moment of the directions'
-    /// weights under each candidate), or all keep --guide-mix (the default: see README).
-    #[arg(long, value_enum, default_value_t = Switch::Off)]
+    /// weights under each candidate; the default), or all keep --guide-mix.
+    #[arg(long, value_enum, default_value_t = Switch::On)]
     pub learn_mix: Switch,
+    /// zvidpt: weight per deposit of earlier training iterations' directional data when a
+    /// guide tree is rebuilt (0: each iteration's own deposits only, as PPG; 1: all alike;
+    /// compounds per iteration).
+    #[arg(long, default_value_t = 0.25)]
+    pub guide_carry: f32,
     /// zvidpt: weight-window width s (no roulette or split while the expected contribution
     /// ratio lies in [2/(1+s), 2s/(1+s)]).
     #[arg(long, default_value_t = 5.0)]
@@ -314,8 +319,9 @@ impl PhotonArgs {
             roulette: Roulette::Window,
             split_samples: 4000,
             train_spp: None,
-            guide_mix: 0.5,
-            learn_mix: Switch::Off,
+            guide_mix: 0.75,
+            learn_mix: Switch::On,
+            guide_carry: 0.25,
             window: 5.0,
             max_split: 8,
             roulette_cv: Switch::On,
@@ -331,6 +337,7 @@ impl PhotonArgs {
             split_samples: self.split_samples,
             guide_mix: self.guide_mix,
             learn_mix: self.learn_mix == Switch::On,
+            guide_carry: self.guide_carry,
             roulette,
             window: self.window,
             max_split: self.max_split,
@@ -352,8 +359,17 @@ impl PhotonArgs {
     }
 
     fn check(&self) -> Result<()> {
-        if self.knn == 0 {
-            return Err(Error::InvalidOption("--knn must be at least 1".into()));
+        if !(1..=crate::photon::MAX_PHOTONS).contains(&self.photons) {
+            return Err(Error::InvalidOption(format!(
+                "--photons must lie in 1..={} (about 100 bytes each)",
+                crate::photon::MAX_PHOTONS
+            )));
+        }
+        if self.knn == 0 || self.knn > self.photons {
+            return Err(Error::InvalidOption(format!(
+                "--knn must lie in 1..={} (the photon count, --photons)",
+                self.photons
+            )));
         }
         if !(self.guide_floor.is_finite() && self.guide_floor > 0.0) {
             return Err(Error::InvalidOption("--guide-floor must be a positive number".into()));
@@ -371,6 +387,9 @@ impl PhotonArgs {
             return Err(Error::InvalidOption(
                 "--guide-mix must lie in [0, 1) (cosine sampling keeps every direction)".into(),
             ));
+        }
+        if !(self.guide_carry.is_finite() && (0.0..=1.0).contains(&self.guide_carry)) {
+            return Err(Error::InvalidOption("--guide-carry must lie in [0, 1]".into()));
         }
         if !(self.window.is_finite() && self.window >= 1.0) {
             return Err(Error::InvalidOption("--window must be a number of at least 1".into()));
@@ -403,6 +422,7 @@ impl PhotonArgs {
             meta.push("split_samples", self.split_samples);
             meta.push("guide_mix", self.guide_mix);
             meta.push("learn_mix", flag_name(self.learn_mix));
+            meta.push("guide_carry", self.guide_carry);
             meta.push("window", self.window);
             meta.push("max_split", self.max_split);
             meta.push("roulette_cv", flag_name(self.roulette_cv));
@@ -441,6 +461,19 @@ fn parse_resolution(s: &str) -> std::result::Result<(u32, u32), String> {
 }
 
 /// Runs a parsed command line. Warnings go to stderr; results to stdout.
+/// Parses a command line (the program name first). Negative numbers are values, so
+/// `--seed -1` is reported as an invalid seed, not as an unknown flag `-1`.
+pub fn parse_from<I, T>(args: I) -> std::result::Result<Cli, clap::Error>
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    use clap::{CommandFactory, FromArgMatches};
+    let mut command = Cli::command().mut_subcommands(|s| s.allow_negative_numbers(true));
+    let matches = command.try_get_matches_from_mut(args)?;
+    Cli::from_arg_matches(&matches).map_err(|e| e.format(&mut command))
+}
+
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Render(args) => run_render(&args).map(|_| ()),
@@ -451,12 +484,17 @@ pub fn run(cli: Cli) -> Result<()> {
     }
 }
 
-/// The default scene path also works from outside the source tree.
+/// The scene argument's default.
+const DEFAULT_SCENE: &str = "scenes/cornell-paper";
+
+/// The default scene also works from outside the source tree (said on standard error); any
+/// other path means what it says.
 fn locate_scene(path: &Path) -> PathBuf {
-    if !path.exists() && path.is_relative() {
-        let fallback = Path::new(env!("CARGO_MANIFEST_DIR")).join(path);
-        if fallback.exists() {
-            return fallback;
+    if path == Path::new(DEFAULT_SCENE) && !path.exists() {
+        let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join(path);
+        if shipped.exists() {
+            warn!("note: no {DEFAULT_SCENE} here; using the shipped one, {}", shipped.display());
+            return shipped;
         }
     }
     path.to_path_buf()
@@ -517,10 +555,17 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         return Err(Error::InvalidOption("--exposure must be finite".into()));
     }
     let png = (!args.no_png).then(|| args.png.clone().unwrap_or_else(|| args.output.with_extension("png")));
-    // Fail before rendering if an output cannot be written.
-    film::check_writable(&args.output)?;
+    // Fail before rendering if an output cannot be written or would replace what it must not.
     if let Some(p) = &png {
-        film::check_writable(p)?;
+        if args.png.is_none() && film::same_file(p, &args.output) {
+            return Err(Error::InvalidOption(format!(
+                "-o {} names the EXR, and the PNG beside it would be the same file: use -o NAME.exr, --png PATH or --no-png",
+                args.output.display()
+            )));
+        }
+        if args.png.is_none() {
+            check_derived_png(p)?;
+        }
     }
     if let Some(t) = args.time
         && !(t.is_finite() && t > 0.0)
@@ -536,6 +581,12 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     if let Some((w, h)) = args.machine.resolution {
         scene.set_resolution(w, h)?;
     }
+    let mut outputs = vec![("EXR", args.output.as_path())];
+    if let Some(p) = &png {
+        outputs.push(("PNG", p.as_path()));
+    }
+    let inputs: Vec<(&str, &Path)> = scene.sources.iter().map(|s| ("scene's file", s.as_path())).collect();
+    film::check_outputs(&outputs, &inputs)?;
     // Warnings only once every option is known to be valid, so a failed run prints one line.
     for w in &scene.warnings {
         warn!("warning: {w}");
@@ -572,44 +623,88 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     }
     meta.push("rays", stats.rays);
     meta.push("version", crate::VERSION);
-    film::write_exr(&args.output, &image, &meta)?;
+    // Both images or neither.
+    let mut staged = vec![film::stage_exr(&args.output, &image, &meta)?];
     if let Some(p) = &png {
-        film::write_png(p, &image, args.exposure)?;
+        staged.push(film::stage_png(p, &image, args.exposure)?);
     }
-    if let Some(p) = &stats.prepass {
-        out!("pre-pass: {p}");
-    }
+    film::commit(staged)?;
     if stats.non_finite > 0 {
         warn!("warning: {} samples were NaN or infinite and were dropped", stats.non_finite);
     }
-    out!(
-        "{} {}x{}, {} spp{}, {:.2} s{}, {:.2} M samples/s, {:.2} M rays/s ({}, {}, {} threads) -> {}{}",
-        scene.name,
-        image.width,
-        image.height,
-        stats.spp,
-        if stats.prior_spp > 0 { format!(" (+{} training spp in the image)", stats.prior_spp) } else { String::new() },
-        stats.seconds,
-        if stats.prepass.is_some() { format!(" (pre-pass {:.2} s)", stats.prepass_seconds) } else { String::new() },
-        stats.samples_per_second() / 1e6,
-        stats.rays_per_second() / 1e6,
-        meta.get("integrator").unwrap_or("?"),
-        backend,
-        stats.threads,
-        args.output.display(),
-        png.map_or(String::new(), |p| format!(", {}", p.display())),
-    );
+    // The images are written: a closed or full standard output no longer fails the command.
+    let summary = || -> Result<()> {
+        if let Some(p) = &stats.prepass {
+            out!("pre-pass: {p}");
+        }
+        out!(
+            "{} {}x{}, {} spp{}, {:.2} s{}, {:.2} M samples/s, {:.2} M rays/s ({}, {}, {} threads) -> {}{}",
+            scene.name,
+            image.width,
+            image.height,
+            stats.spp,
+            if stats.prior_spp > 0 {
+                format!(" (+{} training spp in the image)", stats.prior_spp)
+            } else {
+                String::new()
+            },
+            stats.seconds,
+            if stats.prepass.is_some() { format!(" (pre-pass {:.2} s)", stats.prepass_seconds) } else { String::new() },
+            stats.samples_per_second() / 1e6,
+            stats.rays_per_second() / 1e6,
+            meta.get("integrator").unwrap_or("?"),
+            backend,
+            stats.threads,
+            args.output.display(),
+            png.as_ref().map_or(String::new(), |p| format!(", {}", p.display())),
+        );
+        Ok(())
+    };
+    if let Err(e) = summary()
+        && !e.is_broken_pipe()
+    {
+        warn!("warning: the images are written, but the summary could not be printed: {e}");
+    }
     Ok(stats)
+}
+
+/// The PNG written beside the EXR by default (a path the user did not type) may replace only
+/// an earlier PNG, never another kind of file.
+fn check_derived_png(path: &Path) -> Result<()> {
+    use std::io::Read as _;
+    if !path.is_file() {
+        return Ok(());
+    }
+    let mut magic = [0u8; 8];
+    let is_png =
+        std::fs::File::open(path).and_then(|mut f| f.read_exact(&mut magic)).is_ok() && magic == *b"\x89PNG\r\n\x1a\n";
+    if is_png {
+        Ok(())
+    } else {
+        Err(Error::Output {
+            path: path.to_path_buf(),
+            message: "exists and is not a PNG image; not replacing it (name the PNG with --png, or --no-png)".into(),
+        })
+    }
 }
 
 fn run_diff(args: &DiffArgs) -> Result<()> {
     let (image, _) = film::read_exr(&args.image)?;
     let (reference, _) = film::read_exr(&args.reference)?;
+    if let Some(p) = &args.error_map {
+        film::check_outputs(&[("error map", p)], &[("image", &args.image), ("reference", &args.reference)])?;
+    }
     let m = film::metrics(&image, &reference)?;
     if let Some(p) = &args.error_map {
         film::error_map_png(p, &image, &reference)?;
     }
     out!("MSE {:.6e}  relMSE {:.6e}", m.mse, m.rel_mse);
+    for (what, img, path) in [("image", &image, &args.image), ("reference", &reference, &args.reference)] {
+        let bad = non_finite_values(img);
+        if bad > 0 {
+            warn!("note: the {what} {} has {bad} NaN or infinite pixel values: the errors are NaN", path.display());
+        }
+    }
     if let Some(n) = args.bands {
         if n == 0 || n > image.height {
             return Err(Error::InvalidOption(format!("--bands must lie in 1..={} (the image's rows)", image.height)));
@@ -630,6 +725,11 @@ fn run_diff(args: &DiffArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// Pixel values (per channel) that are NaN or infinite.
+fn non_finite_values(image: &Image) -> usize {
+    image.pixels.iter().flatten().filter(|x| !x.is_finite()).count()
 }
 
 fn run_info(args: &InfoArgs) -> Result<()> {
@@ -655,8 +755,16 @@ fn run_info(args: &InfoArgs) -> Result<()> {
         }
         _ => out!(),
     }
+    let bad = non_finite_values(&image);
+    if bad > 0 {
+        out!("  note: {bad} pixel values are NaN or infinite (so is the mean)");
+    }
+    // Attribute text comes from the file: control characters are shown escaped.
+    let printable = |s: &str| -> String {
+        s.chars().map(|c| if c.is_control() { c.escape_default().to_string() } else { c.to_string() }).collect()
+    };
     for (k, v) in &meta.entries {
-        out!("  {k} = {v}");
+        out!("  {} = {}", printable(k), printable(v));
     }
     Ok(())
 }
@@ -691,7 +799,16 @@ fn run_reference(args: &ReferenceArgs) -> Result<()> {
         out!("{}: up to date ({} spp, scene {hash}); --force renders it again", args.output.display(), args.spp);
         return Ok(());
     }
-    film::check_writable(&args.output)?;
+    let png = args.output.with_extension("png");
+    if film::same_file(&png, &args.output) {
+        return Err(Error::InvalidOption(format!(
+            "-o {} names the EXR, and the PNG beside it would be the same file: use -o NAME.exr",
+            args.output.display()
+        )));
+    }
+    check_derived_png(&png)?;
+    let inputs: Vec<(&str, &Path)> = scene.sources.iter().map(|s| ("scene's file", s.as_path())).collect();
+    film::check_outputs(&[("EXR", &args.output), ("PNG", &png)], &inputs)?;
     let settings = RenderSettings {
         spp: Some(args.spp),
         time_limit: None,
@@ -713,8 +830,7 @@ fn run_reference(args: &ReferenceArgs) -> Result<()> {
     meta.push("seconds", format!("{:.3}", stats.seconds));
     meta.push("threads", stats.threads);
     meta.push("version", crate::VERSION);
-    film::write_exr(&args.output, &image, &meta)?;
-    film::write_png(&args.output.with_extension("png"), &image, 0.0)?;
+    film::commit(vec![film::stage_exr(&args.output, &image, &meta)?, film::stage_png(&png, &image, 0.0)?])?;
     out!(
         "{}: reference {}x{}, {} spp, {:.1} s ({}, {} threads)",
         args.output.display(),
@@ -734,8 +850,26 @@ fn run_converge(args: &ConvergeArgs) -> Result<()> {
             "--runs, --spp and --integrators need at least one positive value each".into(),
         ));
     }
+    if args.max_spp == 0 {
+        return Err(Error::InvalidOption("--max-spp must be at least 1".into()));
+    }
+    if args.seed.checked_add(u64::from(args.runs) - 1).is_none() {
+        return Err(Error::InvalidOption(format!(
+            "--seed {} with --runs {}: run r uses seed + r, which would pass the largest seed",
+            args.seed, args.runs
+        )));
+    }
     args.photon.check()?;
     args.machine.backend.check_available()?;
+    // The output folder is checked before any render, not after the last.
+    if args.output.exists() && !args.output.is_dir() {
+        return Err(Error::Output {
+            path: args.output.clone(),
+            message: "is not a folder (converge writes its tables and plots into the folder -o names)".into(),
+        });
+    }
+    std::fs::create_dir_all(&args.output).map_err(|e| Error::io(&args.output, e))?;
+    film::check_writable(&args.output.join("runs.csv"))?;
     let scene = load_at(&args.scene, args.machine.resolution)?;
     let (reference, ref_meta) = film::read_exr(&args.reference)?;
     if (reference.width, reference.height) != (scene.camera.width, scene.camera.height) {
@@ -759,7 +893,7 @@ fn run_converge(args: &ConvergeArgs) -> Result<()> {
         let name = flag_name(integrator);
         for &spp in &args.spp {
             for r in 0..args.runs {
-                let seed = args.seed + r as u64;
+                let seed = args.seed + u64::from(r);
                 let (stats, metrics) = measure(args, &scene, &reference, integrator, spp, seed)?;
                 warn!(
                     "{name} {spp} spp seed {seed}: MSE {:.4e} relMSE {:.4e} in {:.2} s",
@@ -853,7 +987,7 @@ fn run_time_to_mse(args: &ConvergeArgs, scene: &Scene, reference: &Image, target
         let mut seconds = Vec::new();
         let mut spps = Vec::new();
         for r in 0..args.runs {
-            let seed = args.seed + r as u64;
+            let seed = args.seed + u64::from(r);
             let t = crate::converge::time_to_mse(
                 |spp| {
                     let (stats, m) = measure(args, scene, reference, integrator, spp, seed)?;

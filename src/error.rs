@@ -12,6 +12,10 @@ pub enum Error {
         #[source]
         source: std::io::Error,
     },
+    /// An output may not be written where the user asked (it is a link, a device, read-only,
+    /// or the same file as another output or an input of the command).
+    #[error("{path}: {message}")]
+    Output { path: PathBuf, message: String },
     /// The scene file is not valid TOML or does not match the scene schema (unknown keys too).
     #[error("{path}: {message}")]
     SceneSyntax { path: PathBuf, message: String },

@@ -1,44 +1,348 @@
-//! Output files appear whole or not at all: they are written to a temporary file in the same
-//! folder and renamed over the destination.
+//! Output files appear whole or not at all, and only where the user asked for them.
+//!
+//! Each file is written to a temporary file in its destination's folder, flushed and synced
+//! (*staged*); then all files of one command are renamed into place together (*committed*).
+//! If any stage or rename fails, every destination is left as it was (replaced files are
+//! restored from a backup taken by rename) and no temporary file stays behind. Temporary
+//! files in flight are registered, so a signal handler can remove them
+//! ([`remove_pending_files`]); a commit holds the registry's lock, so a signal waits for it
+//! to finish and never leaves a new EXR beside a stale PNG.
+//!
+//! A destination that exists must be a regular, writable file: the rename would otherwise
+//! replace a symbolic link (not its target), a device node, a FIFO or a read-only file.
 use crate::{Error, Result};
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
-fn temporary_path(path: &Path) -> PathBuf {
-    let name = path.file_name().map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
-    path.with_file_name(format!(".{name}.{}.tmp", std::process::id()))
+/// Temporary and backup files that exist right now (removed by [`remove_pending_files`]).
+static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn pending() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    PENDING.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
-/// Writes `path` through `write`, atomically. On any error the temporary file is removed and
-/// the destination is left as it was.
+/// Creates `path` as a registered temporary file. Registry and creation happen under one
+/// lock: a signal handler either runs first (and the file is never created) or sees it.
+fn create_registered(path: &Path) -> std::io::Result<std::fs::File> {
+    let mut list = pending();
+    list.push(path.to_path_buf());
+    std::fs::File::create(path)
+}
+
+fn unregister(list: &mut Vec<PathBuf>, path: &Path) {
+    if let Some(i) = list.iter().position(|p| p == path) {
+        list.swap_remove(i);
+    }
+}
+
+/// Removes every temporary file this process has in flight and returns how many. For a
+/// signal handler: it waits for a commit in progress (backups exist only within one), so
+/// the outputs stay consistent, and it keeps the registry locked, so no new file starts.
+pub fn remove_pending_files() -> usize {
+    let mut list = pending();
+    let n = list.len();
+    for p in list.drain(..) {
+        let _ = std::fs::remove_file(&p);
+    }
+    // Keep the lock: the process is about to exit and must not start another file.
+    std::mem::forget(list);
+    n
+}
+
+fn sibling(path: &Path, suffix: &str) -> PathBuf {
+    let name = path.file_name().map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
+    path.with_file_name(format!(".{name}.{}.{suffix}", std::process::id()))
+}
+
+fn refuse(path: &Path, message: &str) -> Error {
+    Error::Output { path: path.to_path_buf(), message: message.to_string() }
+}
+
+/// Checks that `path` may be replaced: it does not exist, or it is a regular file the user
+/// may write. Symbolic links, folders, devices, FIFOs and sockets are refused.
+pub fn check_destination(path: &Path) -> Result<()> {
+    if path.as_os_str().is_empty() {
+        return Err(refuse(path, "empty output path"));
+    }
+    match std::fs::symlink_metadata(path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(Error::io(path, e)),
+        Ok(m) => {
+            let t = m.file_type();
+            if t.is_symlink() {
+                Err(refuse(path, "is a symbolic link; not replacing it (name the file it points to)"))
+            } else if t.is_dir() {
+                Err(refuse(path, "is a folder"))
+            } else if !t.is_file() {
+                Err(refuse(path, "is not a regular file (a device, FIFO or socket); not replacing it"))
+            } else if m.permissions().readonly() {
+                Err(refuse(path, "is read-only; not replacing it"))
+            } else {
+                Ok(())
+            }
+        }
+    }
+}
+
+/// A file written to its temporary sibling, waiting for [`commit`].
+#[derive(Debug)]
+pub struct Staged {
+    tmp: PathBuf,
+    dest: PathBuf,
+}
+
+impl Drop for Staged {
+    fn drop(&mut self) {
+        // Not committed (an error elsewhere): the temporary file goes.
+        if !self.tmp.as_os_str().is_empty() {
+            let _ = std::fs::remove_file(&self.tmp);
+            unregister(&mut pending(), &self.tmp);
+        }
+    }
+}
+
+/// Writes `path`'s future content through `write` into a temporary file beside it (flushed
+/// and synced). Nothing at `path` changes until [`commit`].
+pub fn stage(path: &Path, write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> Result<()>) -> Result<Staged> {
+    check_destination(path)?;
+    let tmp = sibling(path, "tmp");
+    let file = create_registered(&tmp);
+    let staged = Staged { tmp: tmp.clone(), dest: path.to_path_buf() };
+    let file = file.map_err(|e| Error::io(path, e))?;
+    let mut w = std::io::BufWriter::new(file);
+    write(&mut w)?;
+    w.flush().map_err(|e| Error::io(path, e))?;
+    w.get_ref().sync_all().map_err(|e| Error::io(path, e))?;
+    Ok(staged)
+}
+
+/// Moves every staged file into place, together: if one rename fails, the files already
+/// moved are taken back and the destinations they replaced restored.
+pub fn commit(mut files: Vec<Staged>) -> Result<()> {
+    let mut list = pending();
+    // Checked again: a destination may have changed while the files were being written.
+    for f in &files {
+        check_destination(&f.dest)?;
+    }
+    // (destination, its backup if it existed) for each file moved so far.
+    let mut moved: Vec<(PathBuf, Option<PathBuf>)> = Vec::new();
+    let mut failure = None;
+    for f in &files {
+        let backup = if f.dest.exists() {
+            let b = sibling(&f.dest, "bak");
+            if let Err(e) = std::fs::rename(&f.dest, &b) {
+                failure = Some(Error::io(&f.dest, e));
+                break;
+            }
+            list.push(b.clone());
+            Some(b)
+        } else {
+            None
+        };
+        if let Err(e) = std::fs::rename(&f.tmp, &f.dest) {
+            if let Some(b) = &backup {
+                let _ = std::fs::rename(b, &f.dest);
+                unregister(&mut list, b);
+            }
+            failure = Some(Error::io(&f.dest, e));
+            break;
+        }
+        moved.push((f.dest.clone(), backup));
+    }
+    match failure {
+        None => {
+            for (_, backup) in moved {
+                if let Some(b) = backup {
+                    let _ = std::fs::remove_file(&b);
+                    unregister(&mut list, &b);
+                }
+            }
+            for f in &mut files {
+                unregister(&mut list, &f.tmp);
+                f.tmp = PathBuf::new();
+            }
+            Ok(())
+        }
+        Some(e) => {
+            for (dest, backup) in moved.into_iter().rev() {
+                let _ = std::fs::remove_file(&dest);
+                if let Some(b) = backup {
+                    let _ = std::fs::rename(&b, &dest);
+                    unregister(&mut list, &b);
+                }
+            }
+            drop(list);
+            // Dropping `files` removes the temporary files still left.
+            Err(e)
+        }
+    }
+}
+
+/// Writes `path` through `write`, atomically (one file staged and committed).
 pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> Result<()>,
 ) -> Result<()> {
-    if path.is_dir() {
-        return Err(Error::io(path, std::io::Error::new(std::io::ErrorKind::IsADirectory, "is a directory")));
-    }
-    let tmp = temporary_path(path);
-    let file = std::fs::File::create(&tmp).map_err(|e| Error::io(path, e))?;
-    let mut w = std::io::BufWriter::new(file);
-    let result = write(&mut w)
-        .and_then(|()| w.flush().map_err(|e| Error::io(path, e)))
-        .and_then(|()| w.get_ref().sync_all().map_err(|e| Error::io(path, e)))
-        .and_then(|()| std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e)));
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    commit(vec![stage(path, write)?])
 }
 
 /// Fails early, before a long render, if `path` cannot be written (its folder is missing or
-/// read-only, or it names a folder). Leaves nothing behind.
+/// read-only, or it is not a regular writable file). Leaves nothing behind.
 pub fn check_writable(path: &Path) -> Result<()> {
-    if path.is_dir() {
-        return Err(Error::io(path, std::io::Error::new(std::io::ErrorKind::IsADirectory, "is a directory")));
-    }
-    let tmp = temporary_path(path);
-    std::fs::File::create(&tmp).map_err(|e| Error::io(path, e))?;
+    check_destination(path)?;
+    let tmp = sibling(path, "tmp");
+    let result = create_registered(&tmp).map(drop).map_err(|e| Error::io(path, e));
     let _ = std::fs::remove_file(&tmp);
+    unregister(&mut pending(), &tmp);
+    result
+}
+
+/// The identity of a path for comparing outputs and inputs: the same existing file (by
+/// device and inode, so hard links and `./a` vs `a` match), or the same name in the same
+/// canonical folder.
+fn identity(path: &Path) -> Option<(u64, u64)> {
+    use std::os::unix::fs::MetadataExt;
+    std::fs::metadata(path).ok().map(|m| (m.dev(), m.ino()))
+}
+
+fn canonical_name(path: &Path) -> Option<PathBuf> {
+    let parent = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    Some(std::fs::canonicalize(parent).ok()?.join(path.file_name()?))
+}
+
+/// Whether two paths name the same file (existing or to be created).
+#[must_use]
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    if a == b {
+        return true;
+    }
+    if let (Some(x), Some(y)) = (identity(a), identity(b)) {
+        return x == y;
+    }
+    matches!((canonical_name(a), canonical_name(b)), (Some(x), Some(y)) if x == y)
+}
+
+/// Checks a command's outputs before any work: each may be replaced ([`check_writable`]),
+/// no two are the same file, and none is one of the command's `inputs`. `outputs` pairs
+/// each path with what it is, for the message.
+pub fn check_outputs(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> Result<()> {
+    for (i, (what, path)) in outputs.iter().enumerate() {
+        for (other, earlier) in &outputs[..i] {
+            if same_file(path, earlier) {
+                return Err(refuse(path, &format!("is both the {other} and the {what}; give them different names")));
+            }
+        }
+        for (input, p) in inputs {
+            if same_file(path, p) {
+                return Err(refuse(path, &format!("the {what} would overwrite the {input}, an input of this command")));
+            }
+        }
+    }
+    for (_, path) in outputs {
+        check_writable(path)?;
+    }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("zvidpt-atomic-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    fn leftovers(dir: &Path) -> Vec<String> {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with('.'))
+            .collect()
+    }
+
+    #[test]
+    fn a_failed_file_leaves_every_destination_as_it_was() {
+        let dir = scratch("together");
+        let (a, b) = (dir.join("a.exr"), dir.join("a.png"));
+        std::fs::write(&a, "old a").unwrap();
+        std::fs::write(&b, "old b").unwrap();
+        let first = stage(&a, |w| w.write_all(b"new a").map_err(|e| Error::io(&a, e))).unwrap();
+        let second = stage(&b, |_| Err(Error::InvalidOption("encoder failed".into())));
+        assert!(second.is_err());
+        drop(first);
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "old a");
+        assert_eq!(std::fs::read_to_string(&b).unwrap(), "old b");
+        assert!(leftovers(&dir).is_empty(), "{:?}", leftovers(&dir));
+        // Both staged: both replaced, no backups left.
+        let files = vec![
+            stage(&a, |w| w.write_all(b"new a").map_err(|e| Error::io(&a, e))).unwrap(),
+            stage(&b, |w| w.write_all(b"new b").map_err(|e| Error::io(&b, e))).unwrap(),
+        ];
+        commit(files).unwrap();
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "new a");
+        assert_eq!(std::fs::read_to_string(&b).unwrap(), "new b");
+        assert!(leftovers(&dir).is_empty(), "{:?}", leftovers(&dir));
+        assert!(pending().is_empty());
+    }
+
+    #[test]
+    fn a_failed_rename_restores_the_files_already_moved() {
+        let dir = scratch("rollback");
+        let (a, b) = (dir.join("a.exr"), dir.join("b.png"));
+        std::fs::write(&a, "old a").unwrap();
+        let files = vec![
+            stage(&a, |w| w.write_all(b"new a").map_err(|e| Error::io(&a, e))).unwrap(),
+            stage(&b, |w| w.write_all(b"new b").map_err(|e| Error::io(&b, e))).unwrap(),
+        ];
+        // The second destination becomes a folder before the commit: its rename must fail.
+        std::fs::create_dir(&b).unwrap();
+        assert!(commit(files).is_err());
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "old a");
+        assert!(b.is_dir());
+        assert!(leftovers(&dir).is_empty(), "{:?}", leftovers(&dir));
+    }
+
+    #[test]
+    fn links_special_and_read_only_files_are_not_replaced() {
+        let dir = scratch("refuse");
+        let target = dir.join("target.exr");
+        std::fs::write(&target, "keep").unwrap();
+        let link = dir.join("link.exr");
+        std::os::unix::fs::symlink(&target, &link).unwrap();
+        assert!(check_writable(&link).unwrap_err().to_string().contains("symbolic link"));
+        assert!(write_atomically(&link, |_| Ok(())).is_err());
+        assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
+        assert!(check_writable(Path::new("/dev/null")).unwrap_err().to_string().contains("not a regular file"));
+        let ro = dir.join("ro.exr");
+        std::fs::write(&ro, "keep").unwrap();
+        let mut perm = std::fs::metadata(&ro).unwrap().permissions();
+        perm.set_readonly(true);
+        std::fs::set_permissions(&ro, perm).unwrap();
+        assert!(check_writable(&ro).unwrap_err().to_string().contains("read-only"));
+        assert_eq!(std::fs::read_to_string(&ro).unwrap(), "keep");
+        assert_eq!(std::fs::read_to_string(&target).unwrap(), "keep");
+        assert!(leftovers(&dir).is_empty(), "{:?}", leftovers(&dir));
+    }
+
+    #[test]
+    fn outputs_must_differ_from_each_other_and_from_inputs() {
+        let dir = scratch("same");
+        let a = dir.join("a.exr");
+        std::fs::write(&a, "input").unwrap();
+        let dotted = dir.join(".").join("a.exr");
+        let err = check_outputs(&[("error map", &dotted)], &[("image", &a)]).unwrap_err();
+        assert!(err.to_string().contains("would overwrite the image"), "{err}");
+        let x = dir.join("x.png");
+        let err = check_outputs(&[("EXR", &x), ("PNG", &dir.join("./x.png"))], &[]).unwrap_err();
+        assert!(err.to_string().contains("is both the EXR and the PNG"), "{err}");
+        check_outputs(&[("EXR", &dir.join("x.exr")), ("PNG", &x)], &[("image", &a)]).unwrap();
+        assert!(leftovers(&dir).is_empty());
+    }
 }

@@ -1,4 +1,4 @@
-use super::{Image, Metadata, write_atomically};
+use super::{Image, Metadata, Staged, commit, stage};
 use crate::{Error, Result};
 use exr::prelude::*;
 use std::path::Path;
@@ -6,10 +6,17 @@ use std::path::Path;
 /// Channel names: RGB, and the per-pixel sample variance as a `variance` layer when present.
 const RGB: [&str; 3] = ["R", "G", "B"];
 const VARIANCE: [&str; 3] = ["variance.R", "variance.G", "variance.B"];
+/// Most channels an EXR read here may have (ours have 6; AOV files a few dozen).
+const MAX_CHANNELS: u64 = 64;
 
 /// Writes linear float RGB (and variance, if any), with `meta` as string header attributes
 /// named `zvidpt.<key>`.
 pub fn write_exr(path: &Path, image: &Image, meta: &Metadata) -> Result<()> {
+    commit(vec![stage_exr(path, image, meta)?])
+}
+
+/// [`write_exr`] to a temporary file, for [`super::commit`] with other outputs.
+pub fn stage_exr(path: &Path, image: &Image, meta: &Metadata) -> Result<Staged> {
     let size = (image.width as usize, image.height as usize);
     let mut channels: Vec<AnyChannel<FlatSamples>> = Vec::new();
     for c in 0..3 {
@@ -28,7 +35,7 @@ pub fn write_exr(path: &Path, image: &Image, meta: &Metadata) -> Result<()> {
     attributes.other.insert(Text::from("zvidpt.spp"), AttributeValue::Text(Text::from(image.spp.to_string().as_str())));
     let layer = Layer::new(size, attributes, Encoding::SMALL_LOSSLESS, AnyChannels::sort(channels.into()));
     let exr_image = exr::image::Image::from_layer(layer);
-    write_atomically(path, |w| {
+    stage(path, |w| {
         exr_image.write().to_buffered(w).map_err(|e| Error::Image { path: path.to_path_buf(), message: e.to_string() })
     })
 }
@@ -42,6 +49,18 @@ pub fn read_exr(path: &Path) -> Result<(Image, Metadata)> {
         ));
     }
     let err = |message: String| Error::Image { path: path.to_path_buf(), message };
+    // The headers first: a file may claim any size, and the pixels are allocated from it.
+    let headers = exr::meta::MetaData::read_from_file(path, false).map_err(|e| err(e.to_string()))?;
+    for h in &headers.headers {
+        let (w, hgt) = (h.layer_size.width() as u64, h.layer_size.height() as u64);
+        let channels = h.channels.list.len() as u64;
+        if w * hgt > super::MAX_PIXELS || channels > MAX_CHANNELS {
+            return Err(err(format!(
+                "claims {w}x{hgt} pixels in {channels} channels; this reader takes at most {} pixels and {MAX_CHANNELS} channels",
+                super::MAX_PIXELS
+            )));
+        }
+    }
     let img = read()
         .no_deep_data()
         .largest_resolution_level()

@@ -5,11 +5,19 @@ mod exr_io;
 mod metrics;
 mod png_out;
 
-pub use atomic::{check_writable, write_atomically};
-pub use exr_io::{read_exr, write_exr};
+pub use atomic::{
+    Staged, check_destination, check_outputs, check_writable, commit, remove_pending_files, same_file, stage,
+    write_atomically,
+};
+pub use exr_io::{read_exr, stage_exr, write_exr};
 pub use metrics::{Metrics, error_map_png, metrics, metrics_of_rows};
 pub use png_out::write_rgb8 as write_rgb8_png;
-pub use png_out::{to_srgb8, write_png};
+pub use png_out::{stage_png, to_srgb8, write_png};
+
+/// Most pixels an image may have, rendered or read: 2^26 (e.g. 8192 × 8192). A render holds
+/// about 250 bytes per pixel at its peak (README, "errors and limits"): 17 GB at the limit,
+/// within this machine's 24 GiB.
+pub const MAX_PIXELS: u64 = 1 << 26;
 
 /// A float RGB image, row-major from the top-left.
 #[derive(Clone, Debug, PartialEq)]

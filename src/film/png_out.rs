@@ -1,4 +1,4 @@
-use super::{Image, write_atomically};
+use super::{Image, Staged, stage, write_atomically};
 use crate::{Error, Result};
 use std::path::Path;
 
@@ -24,16 +24,26 @@ pub fn write_png(path: &Path, image: &Image, exposure: f32) -> Result<()> {
     write_rgb8(path, image.width, image.height, &to_srgb8(image, exposure))
 }
 
+/// [`write_png`] to a temporary file, for [`super::commit`] with other outputs.
+pub fn stage_png(path: &Path, image: &Image, exposure: f32) -> Result<Staged> {
+    let bytes = to_srgb8(image, exposure);
+    let (width, height) = (image.width, image.height);
+    let err = |e: png::EncodingError| Error::Image { path: path.to_path_buf(), message: e.to_string() };
+    stage(path, |w| encode_rgb8(w, width, height, &bytes).map_err(err))
+}
+
+fn encode_rgb8(w: &mut impl std::io::Write, width: u32, height: u32, bytes: &[u8]) -> Result<(), png::EncodingError> {
+    let mut enc = png::Encoder::new(w, width, height);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+    let mut writer = enc.write_header()?;
+    writer.write_image_data(bytes)?;
+    writer.finish()
+}
+
 /// Writes 8-bit RGB bytes as a PNG, atomically.
 pub fn write_rgb8(path: &Path, width: u32, height: u32, bytes: &[u8]) -> Result<()> {
     let err = |e: png::EncodingError| Error::Image { path: path.to_path_buf(), message: e.to_string() };
-    write_atomically(path, |w| {
-        let mut enc = png::Encoder::new(w, width, height);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
-        let mut writer = enc.write_header().map_err(err)?;
-        writer.write_image_data(bytes).map_err(err)?;
-        writer.finish().map_err(err)
-    })
+    write_atomically(path, |w| encode_rgb8(w, width, height, bytes).map_err(err))
 }

@@ -1,6 +1,7 @@
 //! Rays, preliminary hits, local frames, robust ray offsets and sampling warps.
 mod frame;
 mod offset;
+pub mod polygon;
 mod ray;
 pub mod spherical;
 mod triangle;

@@ -116,14 +116,19 @@ pub struct LearnedGuide {
     pub learn_mix: bool,
     /// Samples a cell must have received in an iteration to be split.
     pub split_samples: u64,
+    /// Weight per deposit of the previous trees' data in each new tree (see
+    /// [`Forest::freeze_tree_blended`]).
+    pub carry: f32,
 }
 
 /// The tree-sampling probabilities a cell chooses from, by the second moment each would have
 /// given this iteration's directions (one-sample MIS: a direction drawn with density `p` is
 /// weighted `g/(α·p_tree + (1−α)·p_cos)`; its second moment under any `α` is estimated from
 /// the same samples by `g²/(p_α·p)`). In the furnace, where cosine sampling is exact, cells
-/// choose 0; where light comes from a small bright patch, 0.75–0.9.
-pub const MIX_CANDIDATES: [f32; 5] = [0.0, 0.25, 0.5, 0.75, 0.9];
+/// choose 0; where light comes from a small bright patch, 0.75. (0.9 was a candidate too: with
+/// a guide learned from one training spp, cells that chose it left 10% to cosine sampling and
+/// their samples were heavy-tailed, failing the path-reference z-test at 5.6 at two seeds.)
+pub const MIX_CANDIDATES: [f32; 4] = [0.0, 0.25, 0.5, 0.75];
 /// A cell changes its probability only when another candidate's estimated second moment is
 /// below this fraction of its current one's, and from at least this many directions
 /// (0.7 or 0.97 kept the furnace's cells at 0.5: their moments differ by a few percent, yet
@@ -166,6 +171,7 @@ impl LearnedGuide {
             moments: Vec::new(),
             learn_mix: false,
             split_samples: 4000,
+            carry: 0.25,
         };
         for b in 0..BUCKETS {
             guide.roots[b] = guide.nodes.len() as u32;
@@ -464,9 +470,13 @@ impl LearnedGuide {
         let Some(mut filling) = self.filling.take() else {
             return Ok(());
         };
+        // Earlier iterations' directional data carry over with weight `carry` per deposit
+        // (compounding: `carry^j` for the iteration j back), the photon seed's do not (its
+        // trees hold photon flux of indirect light only).
+        let carry = if k > 0 { self.carry } else { 0.0 };
         let mut trees = Forest::default();
         for t in 0..self.trees.len() {
-            filling.forest.freeze_tree(t, &filling.acc);
+            filling.forest.freeze_tree_blended(t, &filling.acc, carry);
             let samples = self.spread[t][0].load(Ordering::Relaxed);
             if samples >= MIN_TREE_SAMPLES && filling.forest.total(t) > 0.0 {
                 filling.forest.copy_into(t, &mut trees);

@@ -194,15 +194,32 @@ impl Forest {
     /// Fills `energy` and `samples` of every node of tree `t` from the leaf accumulators:
     /// energy at `acc[8·node + 2q]`, deposit count at `acc[8·node + 2q + 1]`.
     pub fn freeze_tree(&mut self, t: usize, acc: &[AtomicU64]) {
-        fn fill(nodes: &mut [Node], acc: &[AtomicU64], n: usize) -> (f32, u32) {
+        self.freeze_tree_blended(t, acc, 0.0);
+    }
+
+    /// As [`Self::freeze_tree`], blending in the prior that [`Self::refine_into`] left in the
+    /// tree's quadrants (the previous tree's energy over each quadrant's region). Both are
+    /// normalised per deposit, then averaged with weights `deposits` and `carry · prior
+    /// deposits`: with `carry` = 1 the tree is learned from every iteration's deposits alike,
+    /// in whatever units the prior was (photon flux for the seed).
+    pub fn freeze_tree_blended(&mut self, t: usize, acc: &[AtomicU64], carry: f32) {
+        fn fill(nodes: &mut [Node], acc: &[AtomicU64], n: usize, blend: Option<(f32, f32)>) -> (f32, u32) {
             let (mut total, mut count) = (0.0, 0u32);
             for q in 0..4 {
                 let c = nodes[n].child[q] as usize;
                 let (e, k) = if c == 0 {
                     let k = acc[8 * n + 2 * q + 1].load(Ordering::Relaxed).min(u32::MAX as u64) as u32;
-                    (from_fixed(acc[8 * n + 2 * q].load(Ordering::Relaxed)) as f32, k)
+                    let e = from_fixed(acc[8 * n + 2 * q].load(Ordering::Relaxed)) as f32;
+                    match blend {
+                        // (energy scale, deposit weight) of the prior.
+                        Some((scale, weight)) => {
+                            let (pe, pk) = (nodes[n].energy[q], nodes[n].samples[q]);
+                            (e + scale * pe, k.saturating_add((weight * pk as f32) as u32))
+                        }
+                        None => (e, k),
+                    }
                 } else {
-                    fill(nodes, acc, c)
+                    fill(nodes, acc, c, blend)
                 };
                 nodes[n].energy[q] = e;
                 nodes[n].samples[q] = k;
@@ -212,14 +229,39 @@ impl Forest {
             (total, count)
         }
         let root = self.roots[t] as usize;
-        fill(&mut self.nodes, acc, root);
+        let prior = (self.nodes[root].total(), self.nodes[root].samples.iter().map(|&k| k as u64).sum::<u64>());
+        let blend = if carry > 0.0 && prior.0 > 0.0 && prior.1 > 0 {
+            // This iteration's own totals (a dry pass over the accumulators).
+            let (mut energy, mut count) = (0.0f64, 0u64);
+            let mut stack = vec![root];
+            while let Some(n) = stack.pop() {
+                for q in 0..4 {
+                    match self.nodes[n].child[q] {
+                        0 => {
+                            energy += from_fixed(acc[8 * n + 2 * q].load(Ordering::Relaxed));
+                            count += acc[8 * n + 2 * q + 1].load(Ordering::Relaxed);
+                        }
+                        c => stack.push(c as usize),
+                    }
+                }
+            }
+            (energy > 0.0 && count > 0).then(|| {
+                // Prior energy per prior deposit → this iteration's energy per deposit.
+                let scale = carry as f64 * (energy / count as f64) / (prior.0 as f64 / prior.1 as f64);
+                (scale as f32, carry)
+            })
+        } else {
+            None
+        };
+        fill(&mut self.nodes, acc, root, blend);
     }
 
-    /// Appends to `out` a refined copy of frozen tree `t` of `self` (its topology, energies
-    /// zeroed): a quadrant holding more than `threshold` of the tree's energy and at least
-    /// `min_samples` deposits is split (a leaf's energy and deposits are assumed spread evenly
-    /// over its four children), one holding less is merged back into a leaf. Returns the new
-    /// root index.
+    /// Appends to `out` a refined copy of frozen tree `t` of `self`: a quadrant holding more
+    /// than `threshold` of the tree's energy and at least `min_samples` deposits is split (a
+    /// leaf's energy and deposits are assumed spread evenly over its four children), one
+    /// holding less is merged back into a leaf. Each quadrant of the copy keeps the old tree's
+    /// energy and deposits over its region (the prior [`Self::freeze_tree_blended`] may blend
+    /// in). Returns the new root index.
     pub fn refine_into(&self, t: usize, threshold: f32, min_samples: u32, out: &mut Forest) -> u32 {
         let total = self.total(t);
         let root = out.nodes.len() as u32;
@@ -232,6 +274,8 @@ impl Forest {
             let mut stack: Vec<Pending> =
                 vec![(root, Some(self.roots[t] as usize), old_root.energy, old_root.samples, 1)];
             while let Some((new, old, energy, samples, depth)) = stack.pop() {
+                out.nodes[new as usize].energy = energy;
+                out.nodes[new as usize].samples = samples;
                 for q in 0..4 {
                     if energy[q] <= limit || samples[q] < min_samples || depth >= MAX_DEPTH {
                         continue;
@@ -368,5 +412,34 @@ mod tests {
         assert_eq!(out.total(1), forest.total(1));
         assert_eq!(out.nodes[r as usize].energy, forest.nodes[1].energy);
         assert_eq!(out.pdf(1, Vec2::new(0.1, 0.1)), 3.0);
+    }
+
+    /// Blending: a refined tree keeps the old energy over each quadrant as its prior; freezing
+    /// with `carry` averages the old and new shapes by deposits × carry (units cancel).
+    #[test]
+    fn carry_blends_shapes_by_deposits() {
+        let mut old = Forest::flat(1);
+        let acc: Vec<AtomicU64> = (0..8).map(|_| AtomicU64::new(0)).collect();
+        // Old: all energy in quadrant 0 (100 units over 100 deposits).
+        acc[0].fetch_add(to_fixed(100.0), Ordering::Relaxed);
+        acc[1].fetch_add(100, Ordering::Relaxed);
+        old.freeze_tree(0, &acc);
+        // A threshold above 1 keeps one node; quadrant 0's prior is the old energy.
+        let mut new = Forest::default();
+        old.refine_into(0, 2.0, 1, &mut new);
+        assert_eq!(new.nodes[0].energy, [100.0, 0.0, 0.0, 0.0]);
+        // New: all energy in quadrant 3, 1 unit per deposit over 300 deposits.
+        let acc: Vec<AtomicU64> = (0..8).map(|_| AtomicU64::new(0)).collect();
+        acc[6].fetch_add(to_fixed(300.0), Ordering::Relaxed);
+        acc[7].fetch_add(300, Ordering::Relaxed);
+        let mut blended = new.clone();
+        blended.freeze_tree_blended(0, &acc, 0.5);
+        // Shapes weighted 300 : 0.5·100 → quadrant 0 holds 50/350 of the density.
+        let p0 = blended.pdf(0, Vec2::new(0.25, 0.25));
+        assert!((p0 - 4.0 * 50.0 / 350.0).abs() < 1e-4, "{p0}");
+        assert_eq!(blended.nodes[0].samples, [50, 0, 0, 300]);
+        // Without carry the prior is dropped.
+        new.freeze_tree(0, &acc);
+        assert_eq!(new.pdf(0, Vec2::new(0.25, 0.25)), 0.0);
     }
 }

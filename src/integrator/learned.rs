@@ -54,13 +54,21 @@ pub struct LearnedSettings {
     /// PPG's c).
     pub split_samples: u64,
     /// Probability of sampling the learned density (the rest: cosine sampling): fixed, or the
-    /// start of each cell's learned probability.
+    /// start of each cell's learned probability. 0.75 against 0.5: cornell-paper 20–24% lower
+    /// MSE at 32 spp for 11% more time; cornell-classic, cornell-blocks and partition 0–4%
+    /// lower MSE at equal time (20 s).
     pub guide_mix: f32,
-    /// Learn each cell's probability (see [`crate::guide::MIX_CANDIDATES`]). Off by default:
-    /// on cornell-paper it raised the 64-spp MSE from 0.0126 to 0.0147 (the per-cell second
-    /// moments are noisy); in the furnace, where cosine sampling is exact, it lowers the
-    /// variance 30× (cells learn 0).
+    /// Learn each cell's probability (see [`crate::guide::MIX_CANDIDATES`]), starting from
+    /// `guide_mix`. On by default since trees carry over between iterations: cornell-paper
+    /// 32 spp MSE 0.0184 on vs 0.0194 off; in the furnace, where cosine sampling is exact,
+    /// the variance falls 60× (cells learn 0). (Before the carry-over, on cost 15% there.)
     pub learn_mix: bool,
+    /// Weight of earlier iterations' directional data per deposit when a tree is rebuilt
+    /// (0: each iteration's tree from its own deposits only, as PPG; 1: from all alike).
+    /// On cornell-paper (32 + 31 training spp, seeds 2 and 3) 0.25 and 0.5 lowered the MSE
+    /// 15–17% against 0; 0.75 matched 0 and 1 was 25% worse (early iterations' outliers
+    /// persist).
+    pub guide_carry: f32,
     pub roulette: Roulette,
     /// Weight-window width `s`: no action while the expected contribution ratio lies in
     /// `[2/(1+s), 2s/(1+s)]`.
@@ -80,8 +88,9 @@ impl Default for LearnedSettings {
             photons: 6891,
             knn: 50,
             split_samples: 4000,
-            guide_mix: 0.5,
-            learn_mix: false,
+            guide_mix: 0.75,
+            learn_mix: true,
+            guide_carry: 0.25,
             roulette: Roulette::Window,
             window: 5.0,
             max_split: 8,
@@ -102,7 +111,7 @@ pub struct LearnedZvidpt {
     pub settings: LearnedSettings,
     pub guide: Option<LearnedGuide>,
     pub iterations: Vec<Iteration>,
-    /// The last training iteration's samples, which the image includes.
+    /// The training iterations' samples (those of at least 2 spp), which the image includes.
     prior: Option<PriorSamples>,
 }
 
@@ -321,16 +330,15 @@ impl LearnedZvidpt {
         si.emitted() + self.reflected(ctx, guide, &si, Vec3A::ONE, reference, 0, 1, rng, scratch)
     }
 
-    /// One training iteration over the whole image at `spp`, depositing into the guide; with
-    /// `keep`, each pixel's sums (the last iteration's samples go into the image).
+    /// One training iteration over the whole image at `spp`, depositing into the guide;
+    /// returns each pixel's sums and sums of squares (row-major).
     fn train_pass<A: Accel>(
         &self,
         ctx: &RenderContext<A>,
         guide: &LearnedGuide,
         seed: u64,
         spp: u32,
-        keep: bool,
-    ) -> Option<PriorSamples> {
+    ) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
         let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
         let rows: Vec<Vec<([f64; 3], [f64; 3])>> = (0..height)
             .into_par_iter()
@@ -341,7 +349,9 @@ impl LearnedZvidpt {
                     let pixel = UVec2::new(x, y);
                     let reference = self.pixel_reference(ctx, guide, pixel, seed, &mut scratch);
                     let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
-                    for s in 0..spp {
+                    // Iteration k takes samples 2^k .. 2^(k+1) of the pixel's sequence (an
+                    // aligned block: stratified by itself, and with the others).
+                    for s in spp..2 * spp {
                         let mut rng = SampleStream::new(seed, y * width + x, s);
                         let v = self.camera_sample(ctx, guide, pixel, reference, &mut rng, &mut scratch);
                         let v = if v.is_finite() { v } else { Vec3A::ZERO };
@@ -350,23 +360,13 @@ impl LearnedZvidpt {
                             sum_sq[c] += f64::from(v[c]) * f64::from(v[c]);
                         }
                     }
-                    if keep {
-                        row.push((sum, sum_sq));
-                    }
+                    row.push((sum, sum_sq));
                 }
                 row
             })
             .collect();
-        keep.then(|| {
-            let (sum, sum_sq) = rows.into_iter().flatten().unzip();
-            PriorSamples { spp, sum, sum_sq }
-        })
+        rows.into_iter().flatten().unzip()
     }
-}
-
-/// The stream seed of training iteration `k` (never the final render's).
-fn training_seed(seed: u64, k: u32) -> u64 {
-    seed ^ (0x7A41_4E00_0000_0000 | (k as u64 + 1) << 40)
 }
 
 impl Integrator for LearnedZvidpt {
@@ -386,27 +386,29 @@ impl Integrator for LearnedZvidpt {
         guide.split_samples = self.settings.split_samples;
         guide.set_mix(self.settings.guide_mix);
         guide.learn_mix = self.settings.learn_mix;
+        guide.carry = self.settings.guide_carry;
         let seeded = start.elapsed().as_secs_f64();
         drop(map);
         self.iterations.clear();
         // Training budget: iterations of 1, 2, 4, … spp. With a sample count, their total
         // stays within `train_spp` (half the final count by default). With a time budget,
         // iterations run while the next (about twice the last) would end within
-        // TRAIN_FRACTION of the budget. Either way the rule never looks at the samples' values,
-        // so the last iteration's samples can go into the image with equal weights, unbiased.
+        // TRAIN_FRACTION of the budget. Either way the rule never looks at the samples' values.
+        // Every iteration of at least 2 spp goes into the image by inverse-variance weights
+        // that are independent of each pixel's own values (`passes`): unbiased.
         let spp_budget = self.settings.train_spp.or_else(|| ctx.spp.map(|n| (n / 2).max(1)));
         let time_budget = if spp_budget.is_none() { ctx.time_limit } else { None };
         // Iterations that fit the sample budget: 1 + 2 + … + 2^(k−1) = 2^k − 1 ≤ budget.
         let planned = spp_budget.map(|b| (u64::from(b) + 1).ilog2().min(16));
-        self.prior = None;
+        let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
+        let mut prior = PriorSamples::new(width, height);
         for k in 0..16u32 {
             let spp = 1u32 << k;
-            let last = match (planned, time_budget) {
+            match (planned, time_budget) {
                 (Some(n), _) => {
                     if k >= n {
                         break;
                     }
-                    k + 1 == n
                 }
                 (None, Some(t)) => {
                     // An iteration takes about twice its predecessor (first: an estimate).
@@ -415,24 +417,22 @@ impl Integrator for LearnedZvidpt {
                     if k > 0 && elapsed + next > TRAIN_FRACTION * t {
                         break;
                     }
-                    false
                 }
                 (None, None) => break,
-            };
+            }
             let t = Instant::now();
             guide.begin_iteration();
-            let prior = self.train_pass(ctx, &guide, training_seed(seed, k), spp, last || time_budget.is_some());
+            let (sum, sum_sq) = self.train_pass(ctx, &guide, seed, spp);
             guide.end_iteration(k)?;
+            prior.add_pass(spp, &sum, &sum_sq);
             self.iterations.push(Iteration { spp, seconds: t.elapsed().as_secs_f64() });
-            if prior.is_some() {
-                self.prior = prior;
-            }
         }
+        self.prior = (!prior.is_empty()).then_some(prior);
         let stats = guide.stats();
         self.guide = Some(guide);
         let training: Vec<String> = self.iterations.iter().map(|i| format!("{}", i.spp)).collect();
         Ok(Some(format!(
-            "photon seed {:.3} s; guide {stats}; training {} spp ({}) in {:.2} s, the last {} in the image",
+            "photon seed {:.3} s; guide {stats}; training {} spp ({}) in {:.2} s, {} of them in the image",
             seeded,
             self.training_spp(),
             if training.is_empty() { "none".to_string() } else { training.join("+") },
@@ -443,6 +443,11 @@ impl Integrator for LearnedZvidpt {
 
     fn prior_samples(&self) -> Option<&PriorSamples> {
         self.prior.as_ref()
+    }
+
+    /// Training iteration k took samples 2^k .. 2^(k+1); the render continues the sequence.
+    fn first_sample_index(&self) -> u32 {
+        if self.iterations.is_empty() { 0 } else { 1 << self.iterations.len() }
     }
 
     fn setup_pixel<A: Accel>(&self, ctx: &RenderContext<A>, pixel: UVec2, seed: u64, scratch: &mut Scratch) -> f32 {

@@ -4,12 +4,14 @@
 pub mod guided;
 mod jensen;
 pub mod learned;
+pub mod passes;
 pub mod path;
 mod zvidpt;
 
 pub use guided::GuideSettings;
 pub use jensen::Jensen;
 pub use learned::{LearnedSettings, LearnedZvidpt, Roulette};
+pub use passes::PriorSamples;
 pub use path::PathTracer;
 pub use zvidpt::{Estimator, MAX_SUBPIXELS, Zvidpt};
 
@@ -29,14 +31,6 @@ pub struct RenderContext<'a, A: Accel> {
     pub time_limit: Option<f64>,
     /// The final sample count asked for, if any.
     pub spp: Option<u32>,
-}
-
-/// Per-pixel sums of samples taken before the render's passes (row-major, linear RGB).
-#[derive(Clone, Debug, Default)]
-pub struct PriorSamples {
-    pub spp: u32,
-    pub sum: Vec<[f64; 3]>,
-    pub sum_sq: Vec<[f64; 3]>,
 }
 
 /// Per-tile tallies and scratch memory, owned by the tile being rendered: no shared counters
@@ -67,6 +61,13 @@ pub trait Integrator: Sync + Send {
     /// all equal, never chosen from the samples' values. `None` for most integrators.
     fn prior_samples(&self) -> Option<&PriorSamples> {
         None
+    }
+
+    /// Index of the render's first sample in each pixel's sample sequence: the pre-pass took
+    /// the ones before it. Film points come from one (0,2)-sequence per pixel, so samples
+    /// taken in aligned blocks of it stay stratified together (training and render alike).
+    fn first_sample_index(&self) -> u32 {
+        0
     }
 
     /// Set-up for one pixel, once, before its first sample.

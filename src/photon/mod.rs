@@ -18,6 +18,10 @@ use rayon::prelude::*;
 use std::f32::consts::PI;
 use std::num::NonZeroUsize;
 
+/// Most photons a map may hold (about 100 bytes each with the kd-tree and guide records: a
+/// few GB at most).
+pub const MAX_PHOTONS: usize = 1 << 25;
+
 /// Photon paths traced per parallel batch; the map keeps whole paths, in path order.
 const PATHS_PER_BATCH: u64 = 4096;
 
@@ -74,6 +78,9 @@ impl PhotonMap {
     /// so a few more may be). Deterministic: path `i` draws from its own random stream, and
     /// paths are kept in index order whatever the thread count.
     pub fn build<A: Accel>(scene: &Scene, accel: &A, target: usize, seed: u64) -> Result<PhotonMap> {
+        if target > MAX_PHOTONS {
+            return Err(crate::Error::InvalidOption(format!("at most {MAX_PHOTONS} photons, asked for {target}")));
+        }
         let mut photons: Vec<Photon> = Vec::with_capacity(target + 64);
         let mut emitted = 0u64;
         // A scene whose photons all escape would never fill the map: give up after many paths.

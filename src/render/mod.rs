@@ -165,6 +165,15 @@ pub fn render<A: Accel, I: Integrator>(
         if n == 0 {
             return Err(Error::InvalidOption("threads must be at least 1".into()));
         }
+        // Thousands of threads on a few cores only slow the render down (each owns tiles and
+        // a stack): at most 8 per core.
+        let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+        if n > 8 * cores {
+            return Err(Error::InvalidOption(format!(
+                "{n} threads: at most {} on this machine (8 per core; more only slows the render)",
+                8 * cores
+            )));
+        }
         builder = builder.num_threads(n);
     }
     let pool = builder.build().map_err(|e| Error::InvalidOption(format!("cannot start worker threads: {e}")))?;
@@ -208,20 +217,17 @@ fn render_in_pool<A: Accel, I: Integrator>(
             });
         }
     }
-    if let Some(prior) = integrator.prior_samples() {
-        if prior.sum.len() != (width * height) as usize || prior.sum_sq.len() != prior.sum.len() {
-            return Err(Error::InvalidOption("pre-pass samples do not match the image size".into()));
-        }
-        for tile in &mut tiles {
-            let pixels: Vec<(usize, UVec2)> = tile.pixels().collect();
-            for (i, p) in pixels {
-                let j = (p.y * width + p.x) as usize;
-                tile.sum[i] = prior.sum[j];
-                tile.sum_sq[i] = prior.sum_sq[j];
-            }
-        }
+    if let Some(prior) = integrator.prior_samples()
+        && prior.len() != (width * height) as usize
+    {
+        return Err(Error::InvalidOption("pre-pass samples do not match the image size".into()));
     }
-    let prior_spp = integrator.prior_samples().map_or(0, |p| p.spp);
+    let prior = integrator.prior_samples().filter(|p| !p.is_empty());
+    let prior_spp = prior.map_or(0, |p| p.spp);
+    let offset = integrator.first_sample_index();
+    if settings.spp.is_some_and(|n| n.checked_add(offset).is_none()) {
+        return Err(Error::InvalidOption(format!("spp must be at most {} here", u32::MAX - offset)));
+    }
     let bar = progress_bar(settings);
     tiles.par_iter_mut().for_each(|tile| {
         let mut scratch = Scratch::default();
@@ -238,7 +244,12 @@ fn render_in_pool<A: Accel, I: Integrator>(
         }
         let remaining = settings.spp.map_or(u32::MAX, |n| n - done);
         let pass = if settings.time_limit.is_some() { 1 } else { remaining.min(4) };
-        tiles.par_iter_mut().for_each(|tile| tile.run_pass(&ctx, integrator, settings.seed, width, done, pass));
+        if done.checked_add(offset + pass).is_none() {
+            break;
+        }
+        tiles
+            .par_iter_mut()
+            .for_each(|tile| tile.run_pass(&ctx, integrator, settings.seed, width, offset + done, pass));
         done += pass;
         match (settings.spp, settings.time_limit) {
             (Some(_), None) => bar.set_position(done as u64),
@@ -249,23 +260,35 @@ fn render_in_pool<A: Accel, I: Integrator>(
     let seconds = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
 
-    let n = (done + prior_spp) as f64;
-    let mut pixels = vec![[0.0f32; 3]; (width * height) as usize];
-    let mut variance = vec![[0.0f32; 3]; pixels.len()];
+    let n = done as f64;
+    let mut sum = vec![[0.0f64; 3]; (width * height) as usize];
+    let mut sum_sq = vec![[0.0f64; 3]; sum.len()];
     let (mut rays, mut non_finite) = (0, 0);
     for tile in &tiles {
         rays += tile.scratch.rays;
         non_finite += tile.scratch.non_finite;
         for (i, p) in tile.pixels() {
             let j = (p.y * width + p.x) as usize;
-            for c in 0..3 {
-                let mean = tile.sum[i][c] / n;
-                pixels[j][c] = mean as f32;
-                variance[j][c] =
-                    if n > 1.0 { ((tile.sum_sq[i][c] - n * mean * mean) / (n - 1.0)).max(0.0) as f32 } else { 0.0 };
-            }
+            sum[j] = tile.sum[i];
+            sum_sq[j] = tile.sum_sq[i];
         }
     }
+    drop(tiles);
+    // Samples from before the passes (training) come in by inverse-variance weights.
+    let (pixels, variance) = match prior {
+        Some(prior) => prior.combine(done, &sum, &sum_sq),
+        None => sum
+            .iter()
+            .zip(&sum_sq)
+            .map(|(s, q)| {
+                let mean = s.map(|x| x / n);
+                let var = std::array::from_fn(|c| {
+                    if n > 1.0 { ((q[c] - n * mean[c] * mean[c]) / (n - 1.0)).max(0.0) as f32 } else { 0.0 }
+                });
+                (mean.map(|x| x as f32), var)
+            })
+            .unzip(),
+    };
     let stats = RenderStats {
         spp: done,
         seconds,

@@ -9,6 +9,51 @@ use std::path::{Path, PathBuf};
 
 /// Largest accepted image side, in pixels.
 pub const MAX_RESOLUTION: u32 = 16384;
+/// Largest scene file (TOML) read.
+pub const MAX_SCENE_BYTES: u64 = 16 << 20;
+/// Largest OBJ or MTL file read.
+pub const MAX_MESH_BYTES: u64 = 2 << 30;
+/// Most triangles a scene may hold (about 150 bytes each with the BVH: 10 GB).
+pub const MAX_TRIANGLES: usize = 1 << 26;
+/// Largest emitted radiance per channel (the sun's is about 1.6e9 W/(m²·sr)).
+pub const MAX_EMISSION: f32 = 1e12;
+/// Most vertices of one polygon (ear clipping is quadratic in it).
+pub const MAX_POLYGON_VERTICES: usize = 4096;
+
+/// Reads a whole file after checking that it is a regular file (a FIFO or device would hang
+/// or never end) of at most `limit` bytes. `what` names it in the error.
+pub(crate) fn read_bounded(path: &Path, limit: u64, what: &str) -> Result<Vec<u8>> {
+    use std::io::Read as _;
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if !meta.is_file() {
+        return Err(Error::io(path, std::io::Error::other(format!("not a regular file (a {what} must be one)"))));
+    }
+    let too_big = |size: u64| {
+        Error::io(path, std::io::Error::other(format!("{size} bytes: larger than the {limit}-byte limit for a {what}")))
+    };
+    if meta.len() > limit {
+        return Err(too_big(meta.len()));
+    }
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    std::fs::File::open(path)
+        .and_then(|f| f.take(limit + 1).read_to_end(&mut bytes))
+        .map_err(|e| Error::io(path, e))?;
+    if bytes.len() as u64 > limit {
+        return Err(too_big(bytes.len() as u64));
+    }
+    Ok(bytes)
+}
+
+/// Reads a text file with [`read_bounded`]; a byte sequence that is not UTF-8 is reported
+/// with its line.
+pub(crate) fn read_text(path: &Path, limit: u64, what: &str) -> Result<String> {
+    let bytes = read_bounded(path, limit, what)?;
+    String::from_utf8(bytes).map_err(|e| {
+        let at = e.utf8_error().valid_up_to();
+        let line = e.as_bytes()[..at].iter().filter(|&&b| b == b'\n').count() + 1;
+        Error::io(path, std::io::Error::other(format!("line {line}: not UTF-8 text: is this a {what}?")))
+    })
+}
 
 pub(crate) fn check_resolution(width: u32, height: u32) -> Result<(), String> {
     if width == 0 || height == 0 {
@@ -16,6 +61,12 @@ pub(crate) fn check_resolution(width: u32, height: u32) -> Result<(), String> {
     }
     if width > MAX_RESOLUTION || height > MAX_RESOLUTION {
         return Err(format!("resolution {width}x{height} exceeds the maximum of {MAX_RESOLUTION} per side"));
+    }
+    if u64::from(width) * u64::from(height) > crate::film::MAX_PIXELS {
+        return Err(format!(
+            "resolution {width}x{height} exceeds the maximum of {} pixels (a render's memory grows with them)",
+            crate::film::MAX_PIXELS
+        ));
     }
     Ok(())
 }
@@ -30,7 +81,7 @@ impl Scene {
     /// Loads a scene file (or a folder holding `scene.toml`).
     pub fn load(path: impl AsRef<Path>) -> Result<Scene> {
         let path = resolve_scene_path(path.as_ref());
-        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+        let text = read_text(&path, MAX_SCENE_BYTES, "scene file")?;
         let description: SceneDescription = toml::from_str(&text).map_err(|e| {
             let line = e.span().map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1);
             let message = e.message().trim().replace('\n', " ");
@@ -68,6 +119,14 @@ fn material_from(path: &Path, name: &str, d: &MaterialDescription) -> Result<Mat
             format!("material `{name}`: emission must be finite and non-negative, got {:?}", d.emission),
         ));
     }
+    // Samples are squared for the variance (kept in f32): beyond this a sample's square
+    // overflows, and the image's error estimates become infinite.
+    if emission.max_element() > MAX_EMISSION {
+        return Err(invalid(
+            path,
+            format!("material `{name}`: emission must be at most {MAX_EMISSION:e} per channel, got {:?}", d.emission),
+        ));
+    }
     Ok(Material { diffuse, emission })
 }
 
@@ -93,9 +152,14 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
     let folder = path.parent().unwrap_or(Path::new("."));
     let mut triangles = Vec::new();
     let mut triangle_material = Vec::new();
-    let mut degenerate = 0usize;
+    let mut findings = MeshFindings::default();
+    let mut sources = Vec::new();
     for mesh in &d.meshes {
+        if mesh.obj.is_empty() {
+            return Err(invalid(path, "a [[mesh]] has an empty `obj` path"));
+        }
         let obj_path = folder.join(&mesh.obj);
+        sources.push(obj_path.clone());
         let override_id = match &mesh.material {
             Some(name) => Some(
                 *by_name
@@ -112,21 +176,44 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
             &mut by_name,
             &mut triangles,
             &mut triangle_material,
-            &mut degenerate,
+            &mut findings,
         )?;
     }
     if triangles.is_empty() {
         return Err(invalid(path, "the scene has no (non-degenerate) triangles"));
     }
     let mut warnings = Vec::new();
-    if degenerate > 0 {
-        warnings.push(format!("skipped {degenerate} degenerate (zero-area) triangle(s)"));
+    if findings.degenerate > 0 {
+        warnings.push(format!("skipped {} degenerate (zero-area) triangle(s)", findings.degenerate));
+    }
+    if findings.short_faces > 0 {
+        warnings.push(format!(
+            "skipped {} point(s), line(s) and face(s) with fewer than 3 vertices (not surfaces)",
+            findings.short_faces
+        ));
+    }
+    if findings.non_simple > 0 {
+        warnings.push(format!(
+            "{} polygon(s) are not simple (self-intersecting or degenerate): fan-triangulated",
+            findings.non_simple
+        ));
     }
     let name = path
         .parent()
         .and_then(|p| p.file_name())
         .map_or_else(|| "scene".to_string(), |n| n.to_string_lossy().into_owned());
-    Ok(Scene::from_parts(name, path.to_path_buf(), camera, triangles, triangle_material, materials, warnings))
+    let mut scene =
+        Scene::from_parts(name, path.to_path_buf(), camera, triangles, triangle_material, materials, warnings);
+    scene.sources.extend(sources);
+    Ok(scene)
+}
+
+/// What a mesh had that the scene skips or repairs (reported as warnings).
+#[derive(Debug, Default)]
+struct MeshFindings {
+    degenerate: usize,
+    short_faces: usize,
+    non_simple: usize,
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -138,18 +225,31 @@ fn load_obj(
     by_name: &mut HashMap<String, u32>,
     triangles: &mut Vec<[Vec3A; 3]>,
     triangle_material: &mut Vec<u32>,
-    degenerate: &mut usize,
+    findings: &mut MeshFindings,
 ) -> Result<()> {
     let mesh_err = |message: String| Error::Mesh { path: obj_path.to_path_buf(), message };
-    if !obj_path.is_file() {
-        // tobj reports only "open file failed"; the OS error says why.
-        return Err(std::fs::File::open(obj_path)
-            .err()
-            .map_or_else(|| mesh_err("not a file".into()), |e| Error::io(obj_path, e)));
+    if obj_path.as_os_str().is_empty() || obj_path.file_name().is_none() {
+        return Err(mesh_err("the mesh path is empty or names a folder".into()));
     }
+    let text = read_text(obj_path, MAX_MESH_BYTES, "mesh (OBJ) file")?;
+    // Polygons are kept whole (tobj would fan them, wrong for concave ones) and points and
+    // lines kept too, so that nothing is dropped without a word.
     let options =
-        tobj::LoadOptions { triangulate: true, ignore_points: true, ignore_lines: true, ..Default::default() };
-    let (models, mtl) = tobj::load_obj(obj_path, &options).map_err(|e| mesh_err(e.to_string()))?;
+        tobj::LoadOptions { triangulate: false, ignore_points: false, ignore_lines: false, ..Default::default() };
+    let folder = obj_path.parent().unwrap_or(Path::new("."));
+    let mtl_error = std::cell::RefCell::new(None);
+    let (models, mtl) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |name| {
+        let path = folder.join(name);
+        match read_text(&path, MAX_MESH_BYTES, "material library (MTL)") {
+            Ok(t) => tobj::load_mtl_buf(&mut t.as_bytes()),
+            Err(e) => {
+                *mtl_error.borrow_mut() = Some(e.to_string());
+                Err(tobj::LoadError::OpenFileFailed)
+            }
+        }
+    })
+    .map_err(|e| mesh_err(format!("not a valid OBJ file ({e})")))?;
+    let mtl = mtl.map_err(|e| mtl_error.take().unwrap_or_else(|| e.to_string()));
     // MTL materials: a name the scene file defines wins; otherwise Kd/Ke from the MTL.
     let mut mtl_ids = Vec::new();
     match mtl {
@@ -178,8 +278,15 @@ fn load_obj(
         }
         Err(_) => {}
     }
+    let mut faces = 0usize;
+    let mut polygon = Vec::new();
+    let mut ears = Vec::new();
     for model in &models {
         let m = &model.mesh;
+        if m.indices.is_empty() {
+            // Vertices without faces (or not an OBJ at all): nothing to draw, nothing to check.
+            continue;
+        }
         if let Some(i) = m.positions.iter().position(|x| !x.is_finite()) {
             return Err(mesh_err(format!("object `{}`: vertex {} has a non-finite coordinate", model.name, i / 3 + 1)));
         }
@@ -205,19 +312,56 @@ fn load_obj(
             let i = i as usize * 3;
             Vec3A::new(m.positions[i], m.positions[i + 1], m.positions[i + 2])
         };
-        for f in m.indices.chunks_exact(3) {
-            let mut t = [vertex(f[0]), vertex(f[1]), vertex(f[2])];
-            if reverse {
-                t.swap(1, 2);
-            }
-            let n = (t[1] - t[0]).cross(t[2] - t[0]);
-            if n.length_squared() == 0.0 || !n.normalize().is_finite() {
-                *degenerate += 1;
+        // Face sizes: empty means all triangles.
+        let arities: Box<dyn Iterator<Item = usize>> = if m.face_arities.is_empty() {
+            Box::new(std::iter::repeat_n(3, m.indices.len() / 3))
+        } else {
+            Box::new(m.face_arities.iter().map(|&a| a as usize))
+        };
+        let mut start = 0usize;
+        for (face, arity) in arities.enumerate() {
+            let Some(ids) = m.indices.get(start..start + arity) else {
+                return Err(mesh_err(format!("object `{}`: face {} is truncated", model.name, face + 1)));
+            };
+            start += arity;
+            faces += 1;
+            if arity < 3 {
+                findings.short_faces += 1;
                 continue;
             }
-            triangles.push(t);
-            triangle_material.push(material);
+            if arity > MAX_POLYGON_VERTICES {
+                return Err(mesh_err(format!(
+                    "object `{}`: face {} has {arity} vertices (at most {MAX_POLYGON_VERTICES})",
+                    model.name,
+                    face + 1
+                )));
+            }
+            polygon.clear();
+            polygon.extend(ids.iter().map(|&i| vertex(i)));
+            ears.clear();
+            if !crate::geometry::polygon::triangulate(&polygon, &mut ears) {
+                findings.non_simple += 1;
+            }
+            for e in &ears {
+                let mut t = [polygon[e[0]], polygon[e[1]], polygon[e[2]]];
+                if reverse {
+                    t.swap(1, 2);
+                }
+                let n = (t[1] - t[0]).cross(t[2] - t[0]);
+                if n.length_squared() == 0.0 || !n.normalize().is_finite() {
+                    findings.degenerate += 1;
+                    continue;
+                }
+                if triangles.len() >= MAX_TRIANGLES {
+                    return Err(mesh_err(format!("more than {MAX_TRIANGLES} triangles in the scene")));
+                }
+                triangles.push(t);
+                triangle_material.push(material);
+            }
         }
+    }
+    if faces == 0 {
+        return Err(mesh_err("no faces: an OBJ file lists faces as `f` lines".into()));
     }
     Ok(())
 }

@@ -50,6 +50,8 @@ pub struct Scene {
     emitters: Emitters,
     /// Non-fatal findings while loading (no emitter, degenerate triangles skipped).
     pub warnings: Vec<String>,
+    /// Files the scene was read from (the scene file, its meshes): no output may replace them.
+    pub sources: Vec<PathBuf>,
 }
 
 /// Emitter triangles picked with probability ∝ power (`π · area · lum(Le)`).
@@ -164,7 +166,8 @@ impl Scene {
         if emitters.choice.is_none() {
             warnings.push("the scene has no emitter: the image will be black".into());
         }
-        Self { name, path, camera, triangles, normals, triangle_material, materials, emitters, warnings }
+        let sources = vec![path.clone()];
+        Self { name, path, camera, triangles, normals, triangle_material, materials, emitters, warnings, sources }
     }
 
     /// A scene from raw triangles with one material, for procedural geometry (benchmarks,

@@ -1,0 +1,213 @@
+//! Samples rendered before the final passes (the learned integrator's training iterations),
+//! combined with the final passes by inverse-variance weights.
+//!
+//! Each pass `k` is an unbiased estimate of every pixel, with a per-sample variance `v_k`
+//! that falls as the guide it sampled improves. Weighting pass `k` by `n_k / v_k` (its sample
+//! count over its variance) is the best linear combination; weights computed from a pass's own
+//! pixel values would correlate with them and bias the image. Here the weight of a pixel on
+//! one checkerboard parity (`(x + y)` even or odd) comes from the *other* parity's mean
+//! per-sample variance: given the guides, the samples of different pixels are independent, so
+//! a pixel's weights are independent of its own values and the combination stays exactly
+//! unbiased. (The parities see nearly the same variance, so nothing is lost.)
+
+/// Per-pixel sums (row-major, linear RGB) of passes taken before the final passes, already
+/// weighted; [`Self::combine`] adds the final passes.
+#[derive(Clone, Debug, Default)]
+pub struct PriorSamples {
+    /// Samples per pixel in all passes added.
+    pub spp: u32,
+    width: u32,
+    /// Σ_k w_k · mean_k per pixel.
+    weighted: Vec<[f64; 3]>,
+    /// Σ_k w_k² · s²_k / n_k per pixel (the variance of `weighted`, from sample variances).
+    variance: Vec<[f64; 3]>,
+    /// Σ_k w_k for the pixels of each parity.
+    weight: [f64; 2],
+    /// The last pass's per-sample variance per parity (stands in for a final pass too short
+    /// to measure its own).
+    last: Option<[f64; 2]>,
+}
+
+/// Variances are kept within these bounds, so weights stay finite and positive.
+const VARIANCE_RANGE: (f64, f64) = (1e-30, 1e30);
+
+#[inline]
+fn parity(index: usize, width: u32) -> usize {
+    let (x, y) = (index % width as usize, index / width as usize);
+    (x + y) & 1
+}
+
+/// Mean per-sample variance of each parity's pixels (over channels), from `spp ≥ 2` samples'
+/// sums. A parity without pixels (a one-pixel image) reports 1 for both, i.e. weights by
+/// sample count alone.
+fn parity_variance(width: u32, spp: u32, sum: &[[f64; 3]], sum_sq: &[[f64; 3]]) -> [f64; 2] {
+    let n = f64::from(spp);
+    let (mut total, mut count) = ([0.0f64; 2], [0u64; 2]);
+    for (i, (s, q)) in sum.iter().zip(sum_sq).enumerate() {
+        let p = parity(i, width);
+        for c in 0..3 {
+            let mean = s[c] / n;
+            total[p] += ((q[c] - n * mean * mean) / (n - 1.0)).max(0.0);
+        }
+        count[p] += 3;
+    }
+    if count[0] == 0 || count[1] == 0 {
+        return [1.0; 2];
+    }
+    let clamp = |v: f64| if v.is_nan() { VARIANCE_RANGE.1 } else { v.clamp(VARIANCE_RANGE.0, VARIANCE_RANGE.1) };
+    [clamp(total[0] / count[0] as f64), clamp(total[1] / count[1] as f64)]
+}
+
+impl PriorSamples {
+    #[must_use]
+    pub fn new(width: u32, height: u32) -> Self {
+        let n = width as usize * height as usize;
+        Self { spp: 0, width, weighted: vec![[0.0; 3]; n], variance: vec![[0.0; 3]; n], weight: [0.0; 2], last: None }
+    }
+
+    /// Pixels covered.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.weighted.len()
+    }
+
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.spp == 0
+    }
+
+    /// Adds a pass of `spp` samples per pixel given as per-pixel sums and sums of squares.
+    /// A pass of one sample per pixel cannot measure its variance and is not added (returns
+    /// false); nor is one whose size does not match.
+    pub fn add_pass(&mut self, spp: u32, sum: &[[f64; 3]], sum_sq: &[[f64; 3]]) -> bool {
+        if spp < 2 || sum.len() != self.weighted.len() || sum_sq.len() != sum.len() {
+            return false;
+        }
+        let v = parity_variance(self.width, spp, sum, sum_sq);
+        let n = f64::from(spp);
+        // A pixel of parity p is weighted by the other parity's variance.
+        let w = [n / v[1], n / v[0]];
+        for (i, ((acc, var), (s, q))) in
+            self.weighted.iter_mut().zip(&mut self.variance).zip(sum.iter().zip(sum_sq)).enumerate()
+        {
+            let wi = w[parity(i, self.width)];
+            for c in 0..3 {
+                let mean = s[c] / n;
+                acc[c] += wi * mean;
+                var[c] += wi * wi * ((q[c] - n * mean * mean) / (n - 1.0)).max(0.0) / n;
+            }
+        }
+        self.weight[0] += w[0];
+        self.weight[1] += w[1];
+        self.spp += spp;
+        self.last = Some(v);
+        true
+    }
+
+    /// The image: these passes combined with the final passes (`spp` samples per pixel given
+    /// by their sums). Returns per-pixel means and, per pixel, the combination's variance
+    /// times the total sample count (a per-sample variance, as an unweighted image reports).
+    #[must_use]
+    pub fn combine(&self, spp: u32, sum: &[[f64; 3]], sum_sq: &[[f64; 3]]) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+        let n = f64::from(spp);
+        let v = if spp >= 2 { parity_variance(self.width, spp, sum, sum_sq) } else { self.last.unwrap_or([1.0; 2]) };
+        let w = if spp == 0 { [0.0; 2] } else { [n / v[1], n / v[0]] };
+        let total_spp = f64::from(self.spp) + n;
+        let mut pixels = vec![[0.0f32; 3]; sum.len()];
+        let mut variance = vec![[0.0f32; 3]; sum.len()];
+        for (i, (s, q)) in sum.iter().zip(sum_sq).enumerate() {
+            let p = parity(i, self.width);
+            let total = self.weight[p] + w[p];
+            if total <= 0.0 {
+                continue;
+            }
+            for c in 0..3 {
+                let (mean, s2) = if spp > 0 {
+                    let mean = s[c] / n;
+                    (mean, if spp > 1 { ((q[c] - n * mean * mean) / (n - 1.0)).max(0.0) } else { 0.0 })
+                } else {
+                    (0.0, 0.0)
+                };
+                pixels[i][c] = ((self.weighted[i][c] + w[p] * mean) / total) as f32;
+                let var_mean =
+                    (self.variance[i][c] + if spp > 0 { w[p] * w[p] * s2 / n } else { 0.0 }) / (total * total);
+                variance[i][c] = (var_mean * total_spp) as f32;
+            }
+        }
+        (pixels, variance)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pass(values: &[[f64; 3]], spp: u32, spread: f64) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+        // `spp` samples of value ± spread around each pixel's value (half each way).
+        let n = f64::from(spp);
+        let sum = values.iter().map(|v| v.map(|x| x * n)).collect();
+        let sum_sq = values.iter().map(|v| v.map(|x| n * (x * x + spread * spread))).collect();
+        (sum, sum_sq)
+    }
+
+    #[test]
+    fn weights_follow_inverse_variance() {
+        let (w, h) = (4, 3);
+        let mut prior = PriorSamples::new(w, h);
+        let a = vec![[1.0; 3]; 12];
+        let b = vec![[2.0; 3]; 12];
+        // Pass a: 4 spp with per-sample variance ≈ 4·4/3; final b: 4 spp, variance ≈ 4/3.
+        let (s, q) = pass(&a, 4, 2.0);
+        assert!(prior.add_pass(4, &s, &q));
+        let (s, q) = pass(&b, 4, 1.0);
+        let (pixels, variance) = prior.combine(4, &s, &q);
+        // Weights 1/4 : 1 → (1·0.25 + 2·1)/1.25 = 1.8.
+        for p in &pixels {
+            assert!((p[0] - 1.8).abs() < 1e-5, "{p:?}");
+        }
+        // Var(mean) = (0.25²·16/3/4 + 1·4/3/4)/1.25² = 4/15; × 8 samples.
+        for v in &variance {
+            assert!((v[0] - 8.0 * 4.0 / 15.0).abs() < 1e-4, "{v:?}");
+        }
+        // A one-sample pass is not added (its variance is unknown).
+        let (s, q) = pass(&a, 1, 0.0);
+        assert!(!prior.add_pass(1, &s, &q));
+        assert_eq!(prior.spp, 4);
+    }
+
+    /// A pixel's weights never depend on its own values: changing one pixel's samples changes
+    /// that pixel's output and the other parity's weights, never another pixel of its parity.
+    #[test]
+    fn a_pixel_does_not_weight_itself() {
+        let (w, h) = (5, 4);
+        let base: Vec<[f64; 3]> = (0..20).map(|i| [i as f64 * 0.1, 0.5, 1.0]).collect();
+        let render = |bump: bool| {
+            let mut prior = PriorSamples::new(w, h);
+            let (s, mut q) = pass(&base, 8, 1.0);
+            if bump {
+                // Pixel 6 (x 1, y 1: even parity) gets a firefly-sized second moment.
+                q[6] = q[6].map(|x| x * 50.0);
+            }
+            prior.add_pass(8, &s, &q);
+            let (s, q) = pass(&base.iter().map(|v| v.map(|x| x + 0.3)).collect::<Vec<_>>(), 8, 0.5);
+            prior.combine(8, &s, &q).0
+        };
+        let (plain, bumped) = (render(false), render(true));
+        for i in 0..20 {
+            if parity(i, w) == 0 {
+                assert_eq!(plain[i], bumped[i], "pixel {i} of the same parity moved");
+            }
+        }
+        assert!((0..20).any(|i| parity(i, w) == 1 && plain[i] != bumped[i]), "the other parity's weights follow");
+    }
+
+    #[test]
+    fn one_pixel_images_weight_by_sample_count() {
+        let mut prior = PriorSamples::new(1, 1);
+        let (s, q) = pass(&[[1.0; 3]], 2, 1.0);
+        prior.add_pass(2, &s, &q);
+        let (s, q) = pass(&[[4.0; 3]], 6, 3.0);
+        let (pixels, _) = prior.combine(6, &s, &q);
+        assert!((pixels[0][0] - 3.25).abs() < 1e-6, "{pixels:?}");
+    }
+}

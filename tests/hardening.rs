@@ -1,0 +1,363 @@
+//! Adversarial inputs (the hardening issue): outputs that must not be replaced, sizes a user or
+//! a file controls, signals while writing, the parser's messages, and nonsense that used to
+//! be accepted silently. Each test names the class it covers.
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+fn zvidpt_in(dir: Option<&Path>, args: &[&str]) -> Output {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_zvidpt"));
+    c.args(args).env_remove("RUST_BACKTRACE");
+    if let Some(d) = dir {
+        c.current_dir(d);
+    }
+    c.output().expect("binary runs")
+}
+
+fn zvidpt(args: &[&str]) -> Output {
+    zvidpt_in(None, args)
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("zvidpt-hard-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+const LIGHT: &str = "mtllib box.mtl\nusemtl white\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+const MTL: &str = "newmtl white\nKd 0.5 0.5 0.5\nKe 1 1 1\n";
+
+fn camera(w: u32, h: u32) -> String {
+    format!("[camera]\neye = [0.3, 0.3, 2.0]\nlook_at = [0.3, 0.3, 0.0]\nfov_y = 45.0\nwidth = {w}\nheight = {h}\n")
+}
+
+/// A scene folder with `scene.toml`, `box.obj` = `obj` and `box.mtl`.
+fn scene(name: &str, obj: &str) -> PathBuf {
+    let d = scratch(name);
+    std::fs::write(d.join("scene.toml"), format!("{}[[mesh]]\nobj = \"box.obj\"\n", camera(8, 8))).unwrap();
+    std::fs::write(d.join("box.obj"), obj).unwrap();
+    std::fs::write(d.join("box.mtl"), MTL).unwrap();
+    d
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// Fails with exit 1 and one `error:` line containing `needle`.
+fn fails_with(o: &Output, needle: &str) {
+    let e = stderr(o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(e.lines().count() == 1 && e.starts_with("error: ") && e.contains(needle), "`{needle}` not in:\n{e}");
+}
+
+fn files(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> =
+        std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    v.sort();
+    v
+}
+
+// Class 1: outputs never replace a link, a device, a read-only file, an input, or each other;
+// several outputs are committed together; a closed or full stdout does not fail a finished
+// render.
+
+#[test]
+fn an_exr_named_like_its_png_is_refused() {
+    let d = scene("samepng", LIGHT);
+    let o = zvidpt(&["render", s(&d), "-o", s(&d.join("out.png")), "--spp", "1", "-q"]);
+    fails_with(&o, "same file");
+    let o = zvidpt(&["render", s(&d), "-o", s(&d.join("x.exr")), "--png", s(&d.join("./x.exr")), "--spp", "1", "-q"]);
+    fails_with(&o, "is both the EXR and the PNG");
+    let o = zvidpt(&["reference", s(&d), "-o", s(&d.join("ref.png")), "--spp", "1", "-q"]);
+    fails_with(&o, "same file");
+    assert_eq!(files(&d), ["box.mtl", "box.obj", "scene.toml"]);
+}
+
+#[test]
+fn links_devices_read_only_files_and_inputs_are_not_replaced() {
+    let d = scene("links", LIGHT);
+    let target = d.join("precious.txt");
+    std::fs::write(&target, "keep").unwrap();
+    let link = d.join("out.exr");
+    std::os::unix::fs::symlink(&target, &link).unwrap();
+    let o = zvidpt(&["render", s(&d), "-o", s(&link), "--no-png", "--spp", "1", "-q"]);
+    fails_with(&o, "symbolic link");
+    assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
+    let o = zvidpt(&["render", s(&d), "-o", "/dev/null", "--no-png", "--spp", "1", "-q"]);
+    fails_with(&o, "not a regular file");
+    let ro = d.join("ro.exr");
+    std::fs::write(&ro, "keep").unwrap();
+    let mut p = std::fs::metadata(&ro).unwrap().permissions();
+    p.set_readonly(true);
+    std::fs::set_permissions(&ro, p).unwrap();
+    let o = zvidpt(&["render", s(&d), "-o", s(&ro), "--no-png", "--spp", "1", "-q"]);
+    fails_with(&o, "read-only");
+    // The scene's own files are inputs.
+    let o = zvidpt(&["render", s(&d), "-o", s(&d.join("box.obj")), "--no-png", "--spp", "1", "-q"]);
+    fails_with(&o, "input");
+    // The PNG beside the EXR (a name the user did not type) replaces only a PNG.
+    std::fs::write(d.join("img.png"), "not a png").unwrap();
+    let o = zvidpt(&["render", s(&d), "-o", s(&d.join("img.exr")), "--spp", "1", "-q"]);
+    fails_with(&o, "not a PNG");
+    assert_eq!(std::fs::read_to_string(d.join("img.png")).unwrap(), "not a png");
+    assert_eq!(std::fs::read_to_string(&target).unwrap(), "keep");
+    assert_eq!(std::fs::read_to_string(&ro).unwrap(), "keep");
+    assert!(!files(&d).iter().any(|f| f.ends_with(".tmp") || f == "img.exr"), "{:?}", files(&d));
+}
+
+#[test]
+fn diff_never_writes_over_its_inputs() {
+    let d = scene("diffself", LIGHT);
+    let a = d.join("a.exr");
+    assert!(zvidpt(&["render", s(&d), "-o", s(&a), "--no-png", "--spp", "1", "-q"]).status.success());
+    let before = std::fs::read(&a).unwrap();
+    let o = zvidpt(&["diff", s(&a), s(&a), "--error-map", s(&d.join("./a.exr"))]);
+    fails_with(&o, "would overwrite the image");
+    assert_eq!(std::fs::read(&a).unwrap(), before);
+}
+
+#[test]
+fn a_full_stdout_does_not_fail_a_written_render() {
+    let d = scene("fullout", LIGHT);
+    let out = d.join("out.exr");
+    let o = Command::new(env!("CARGO_BIN_EXE_zvidpt"))
+        .args(["render", s(&d), "-o", s(&out), "--spp", "1", "-q"])
+        .stdout(std::fs::File::create("/dev/full").unwrap())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("summary could not be printed"), "{}", stderr(&o));
+    assert!(out.is_file() && d.join("out.png").is_file());
+}
+
+// Class 2: sizes a user or a file controls are bounded before allocation.
+
+#[test]
+fn huge_counts_and_resolutions_are_refused() {
+    let d = scene("huge", LIGHT);
+    let out = d.join("o.exr");
+    let base = ["render", s(&d), "-o", s(&out), "--spp", "1", "-q"];
+    let with = |extra: &[&str]| zvidpt(&[&base[..], extra].concat());
+    fails_with(&with(&["--integrator", "jensen", "--photons", "1000000000000"]), "--photons must lie in");
+    fails_with(&with(&["--integrator", "jensen", "--photons", "0"]), "--photons must lie in");
+    fails_with(&with(&["--integrator", "jensen", "--photons", "50", "--knn", "100"]), "--knn must lie in 1..=50");
+    fails_with(&with(&["--resolution", "16384x16384"]), "pixels");
+    fails_with(&with(&["--threads", "100000"]), "threads");
+    assert_eq!(files(&d), ["box.mtl", "box.obj", "scene.toml"]);
+}
+
+/// An EXR whose header claims 10⁹ × 10⁹ pixels: refused from the header, no allocation.
+#[test]
+fn an_exr_claiming_a_huge_data_window_is_refused() {
+    let d = scene("exrhuge", LIGHT);
+    let a = d.join("a.exr");
+    assert!(zvidpt(&["render", s(&d), "-o", s(&a), "--no-png", "--spp", "1", "-q"]).status.success());
+    let mut bytes = std::fs::read(&a).unwrap();
+    for name in [&b"dataWindow\0box2i\0"[..], &b"displayWindow\0box2i\0"[..]] {
+        let at = bytes.windows(name.len()).position(|w| w == name).expect("attribute present") + name.len() + 4;
+        bytes[at + 8..at + 12].copy_from_slice(&1_000_000_000i32.to_le_bytes());
+        bytes[at + 12..at + 16].copy_from_slice(&1_000_000_000i32.to_le_bytes());
+    }
+    let huge = d.join("huge.exr");
+    std::fs::write(&huge, bytes).unwrap();
+    for cmd in [vec!["info", s(&huge)], vec!["diff", s(&huge), s(&a)], vec!["diff", s(&a), s(&huge)]] {
+        let o = zvidpt(&cmd);
+        assert_eq!(o.status.code(), Some(1), "{cmd:?}: {}", stderr(&o));
+        assert!(stderr(&o).starts_with("error: ") && stderr(&o).lines().count() == 1, "{}", stderr(&o));
+    }
+}
+
+#[test]
+fn scene_and_mesh_files_must_be_regular_and_bounded() {
+    let d = scene("fifo", LIGHT);
+    let fifo = d.join("pipe.toml");
+    assert!(Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    fails_with(&zvidpt(&["render", s(&fifo), "-o", s(&d.join("o.exr")), "-q", "--spp", "1"]), "not a regular file");
+    // A mesh that is a FIFO.
+    let m = scratch("fifomesh");
+    std::fs::write(m.join("scene.toml"), format!("{}[[mesh]]\nobj = \"pipe.obj\"\n", camera(8, 8))).unwrap();
+    assert!(Command::new("mkfifo").arg(m.join("pipe.obj")).status().unwrap().success());
+    fails_with(&zvidpt(&["render", s(&m), "-o", s(&m.join("o.exr")), "-q", "--spp", "1"]), "not a regular file");
+    // A 17 MiB scene file (sparse).
+    let big = d.join("big.toml");
+    std::fs::File::create(&big).unwrap().set_len(17 << 20).unwrap();
+    fails_with(&zvidpt(&["render", s(&big), "-o", s(&d.join("o.exr")), "-q", "--spp", "1"]), "limit");
+}
+
+// Class 3: SIGINT or SIGTERM while an output is being written leaves no temporary file and
+// exits 130 or 143.
+
+#[test]
+fn signals_while_writing_leave_no_temporary_file() {
+    for (signal, code) in [("-INT", 130), ("-TERM", 143)] {
+        let d = scene(&format!("signal{code}"), LIGHT);
+        std::fs::write(d.join("scene.toml"), format!("{}[[mesh]]\nobj = \"box.obj\"\n", camera(3072, 3072))).unwrap();
+        let mut child = Command::new(env!("CARGO_BIN_EXE_zvidpt"))
+            .args(["render", s(&d), "-o", s(&d.join("out.exr")), "--spp", "1", "-q", "--threads", "2"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        // Wait for the temporary EXR to appear, then interrupt.
+        let start = std::time::Instant::now();
+        let mut seen = false;
+        while start.elapsed().as_secs() < 120 {
+            // The staged EXR (non-empty; the writability probe at the start is empty).
+            let staged = std::fs::read_dir(&d)
+                .unwrap()
+                .map(|e| e.unwrap())
+                .any(|e| e.file_name().to_string_lossy().ends_with(".tmp") && e.metadata().is_ok_and(|m| m.len() > 0));
+            if staged {
+                seen = true;
+                break;
+            }
+            if child.try_wait().unwrap().is_some() {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(2));
+        }
+        assert!(seen, "the render never wrote a temporary file (or finished first)");
+        assert!(Command::new("kill").args([signal, &child.id().to_string()]).status().unwrap().success());
+        let status = child.wait().unwrap();
+        assert_eq!(status.code(), Some(code), "{signal}");
+        let left = files(&d);
+        assert!(!left.iter().any(|f| f.ends_with(".tmp") || f.ends_with(".bak")), "{left:?}");
+        // Both images or neither: never an EXR without its PNG.
+        assert_eq!(left.contains(&"out.exr".to_string()), left.contains(&"out.png".to_string()), "{left:?}");
+    }
+}
+
+// Class 4: errors that help.
+
+#[test]
+fn argument_errors_keep_the_parsers_whole_message() {
+    let o = zvidpt(&["diff"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("<IMAGE>") && stderr(&o).contains("Usage"), "{}", stderr(&o));
+    let o = zvidpt(&["render", "--integrator", "pathh"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("possible values") || stderr(&o).contains("did you mean"), "{}", stderr(&o));
+    // A negative number is a bad value, not an unknown argument.
+    let o = zvidpt(&["render", "--seed", "-1"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("invalid value '-1'"), "{}", stderr(&o));
+}
+
+#[test]
+fn mesh_errors_say_what_is_wrong() {
+    let d = scene("garbage", "\u{1}\u{2}binary\u{ff}");
+    std::fs::write(d.join("box.obj"), [0x00u8, 0xff, 0xfe, 0x80, b'\n']).unwrap();
+    fails_with(&zvidpt(&["render", s(&d), "-o", s(&d.join("o.exr")), "-q", "--spp", "1"]), "not UTF-8 text");
+    std::fs::write(d.join("box.obj"), "hello, this is not a mesh\n").unwrap();
+    fails_with(&zvidpt(&["render", s(&d), "-o", s(&d.join("o.exr")), "-q", "--spp", "1"]), "no faces");
+    std::fs::write(d.join("scene.toml"), format!("{}[[mesh]]\nobj = \"\"\n", camera(8, 8))).unwrap();
+    fails_with(&zvidpt(&["render", s(&d), "-o", s(&d.join("o.exr")), "-q", "--spp", "1"]), "empty");
+}
+
+#[test]
+fn info_escapes_attribute_text() {
+    let d = scene("escape", LIGHT);
+    let a = d.join("a.exr");
+    assert!(zvidpt(&["render", s(&d), "-o", s(&a), "--no-png", "--spp", "1", "-q"]).status.success());
+    // Overwrite the `zvidpt.integrator` text ("path") with an escape sequence of equal length.
+    let mut bytes = std::fs::read(&a).unwrap();
+    let key = b"zvidpt.integrator\0string\0";
+    let at = bytes.windows(key.len()).position(|w| w == key).unwrap() + key.len() + 4;
+    bytes[at..at + 4].copy_from_slice(b"\x1b[2J");
+    std::fs::write(&a, bytes).unwrap();
+    let o = zvidpt(&["info", s(&a)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stdout(&o).contains('\u{1b}') && stdout(&o).contains("\\u{1b}[2J"), "{}", stdout(&o));
+}
+
+#[test]
+fn converge_checks_its_output_folder_before_rendering() {
+    let d = scene("convout", LIGHT);
+    let file = d.join("taken");
+    std::fs::write(&file, "x").unwrap();
+    let o = zvidpt(&["converge", s(&d), "--reference", s(&d.join("missing.exr")), "-o", s(&file)]);
+    fails_with(&o, "is not a folder");
+    let o = zvidpt(&[
+        "converge",
+        s(&d),
+        "--reference",
+        "r.exr",
+        "-o",
+        s(&d.join("c")),
+        "--seed",
+        "18446744073709551615",
+        "--runs",
+        "2",
+    ]);
+    fails_with(&o, "largest seed");
+    let o = zvidpt(&[
+        "converge",
+        s(&d),
+        "--reference",
+        "r.exr",
+        "-o",
+        s(&d.join("c")),
+        "--time-to-mse",
+        "0.1",
+        "--max-spp",
+        "0",
+    ]);
+    fails_with(&o, "--max-spp");
+}
+
+// Class 5: nonsense is no longer accepted silently.
+
+#[test]
+fn short_faces_are_counted_and_concave_polygons_keep_their_shape() {
+    // An L-shaped emitter (area 3) as one concave polygon, plus a two-vertex "face".
+    let obj =
+        "mtllib box.mtl\nusemtl white\nv 0 0 0\nv 0 2 0\nv 1 2 0\nv 1 1 0\nv 2 1 0\nv 2 0 0\nf 6 5 4 3 2 1\nf 1 2\n";
+    let d = scene("concave", obj);
+    let scene = zvidpt::scene::Scene::load(&d).unwrap();
+    let area: f32 = scene.triangles.iter().map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length()).sum();
+    assert!((area - 3.0).abs() < 1e-5, "area {area}");
+    assert!(scene.warnings.iter().any(|w| w.contains("fewer than 3 vertices")), "{:?}", scene.warnings);
+    let o = zvidpt(&["render", s(&d), "-o", s(&d.join("o.exr")), "-q", "--spp", "1"]);
+    assert!(o.status.success() && stderr(&o).contains("fewer than 3 vertices"), "{}", stderr(&o));
+}
+
+#[test]
+fn absurd_emission_and_nan_images_are_explained() {
+    let d = scene("emission", LIGHT);
+    std::fs::write(d.join("box.mtl"), "newmtl white\nKd 0.5 0.5 0.5\nKe 1e30 1 1\n").unwrap();
+    fails_with(&zvidpt(&["render", s(&d), "-o", s(&d.join("o.exr")), "-q", "--spp", "1"]), "emission must be at most");
+    // An image with a NaN pixel: diff and info say why their figures are NaN.
+    let image = zvidpt::film::Image {
+        width: 2,
+        height: 1,
+        pixels: vec![[f32::NAN, 0.0, 0.0], [1.0; 3]],
+        variance: None,
+        spp: 1,
+    };
+    let (nan, one) = (d.join("nan.exr"), d.join("one.exr"));
+    zvidpt::film::write_exr(&nan, &image, &zvidpt::film::Metadata::default()).unwrap();
+    zvidpt::film::write_exr(&one, &zvidpt::film::Image { pixels: vec![[1.0; 3]; 2], ..image }, &Default::default())
+        .unwrap();
+    let o = zvidpt(&["diff", s(&nan), s(&one)]);
+    assert!(stderr(&o).contains("1 NaN or infinite"), "{}", stderr(&o));
+    let o = zvidpt(&["info", s(&nan)]);
+    assert!(stdout(&o).contains("1 pixel values are NaN or infinite"), "{}", stdout(&o));
+}
+
+#[test]
+fn a_missing_relative_scene_is_not_found_elsewhere() {
+    let d = scratch("relative");
+    let o = zvidpt_in(Some(&d), &["render", "scenes/cornell-classic", "-o", "o.exr", "-q", "--spp", "1"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("scenes/cornell-classic"), "{}", stderr(&o));
+    assert!(files(&d).is_empty());
+}
