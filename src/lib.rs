@@ -13,6 +13,7 @@ pub mod cli;
 pub mod converge;
 pub mod error;
 pub mod film;
+pub mod fuzzing;
 pub mod geometry;
 pub mod guide;
 pub mod integrator;

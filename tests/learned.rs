@@ -96,9 +96,11 @@ fn learning_is_deterministic_across_threads_and_tiles() {
 /// variance is far below the path tracer's at equal spp. Measured with 256 training spp and
 /// learned mixture probabilities (cells learn to sample the cosine; with the fixed 0.5 mix
 /// the learned trees' own noise limits the ratio to ~3):
-/// path 2.0e-3, zvidpt 2.1e-5, ratio 95; what is left is next event estimation on the
-/// sphere's 81,920 flat facets (one NEE sample's variance is 1.5e-5 here, the same for both
-/// integrators). Asserted > 50. Without the control variate (a stopped walk returning 0, not
+/// path 2.0e-3, zvidpt 2.9e-5, ratio 69 (the image's per-sample variance, its 255 training
+/// samples weighted in: the early iterations' are higher; 95 when only the last iteration
+/// went in, from a 0.5 mix); what is left is next event estimation on the sphere's 81,920
+/// flat facets (one NEE sample's variance is 1.5e-5 here, the same for both integrators).
+/// Asserted > 50. Without the control variate (a stopped walk returning 0, not
 /// `L̃ind`) the ratio falls to 0.13: the test fails.
 #[test]
 fn learned_walk_variance_in_the_furnace() {

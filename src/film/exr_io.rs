@@ -45,29 +45,36 @@ pub fn read_exr(path: &Path) -> Result<(Image, Metadata)> {
     if !path.is_file() {
         return Err(Error::io(
             path,
-            std::fs::File::open(path).err().unwrap_or_else(|| std::io::Error::other("not a file")),
+            std::fs::File::open(path).err().unwrap_or_else(|| std::io::Error::other("not a regular file")),
         ));
     }
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    read_exr_from(std::io::BufReader::new(file), path)
+}
+
+/// [`read_exr`] from any seekable reader (`path` names it in errors).
+pub fn read_exr_from(mut reader: impl std::io::Read + std::io::Seek, path: &Path) -> Result<(Image, Metadata)> {
     let err = |message: String| Error::Image { path: path.to_path_buf(), message };
     // The headers first: a file may claim any size, and the pixels are allocated from it.
-    let headers = exr::meta::MetaData::read_from_file(path, false).map_err(|e| err(e.to_string()))?;
+    let headers = exr::meta::MetaData::read_from_buffered(&mut reader, false).map_err(|e| err(e.to_string()))?;
     for h in &headers.headers {
         let (w, hgt) = (h.layer_size.width() as u64, h.layer_size.height() as u64);
         let channels = h.channels.list.len() as u64;
-        if w * hgt > super::MAX_PIXELS || channels > MAX_CHANNELS {
+        if w.saturating_mul(hgt) > super::MAX_PIXELS || channels > MAX_CHANNELS {
             return Err(err(format!(
                 "claims {w}x{hgt} pixels in {channels} channels; this reader takes at most {} pixels and {MAX_CHANNELS} channels",
                 super::MAX_PIXELS
             )));
         }
     }
+    reader.seek(std::io::SeekFrom::Start(0)).map_err(|e| Error::io(path, e))?;
     let img = read()
         .no_deep_data()
         .largest_resolution_level()
         .all_channels()
         .first_valid_layer()
         .all_attributes()
-        .from_file(path)
+        .from_buffered(reader)
         .map_err(|e| err(e.to_string()))?;
     let layer = &img.layer_data;
     let (w, h) = (layer.size.width(), layer.size.height());
@@ -78,9 +85,13 @@ pub fn read_exr(path: &Path) -> Result<(Image, Metadata)> {
             .iter()
             .find(|c| c.name.to_string() == name)
             .map(|c| c.sample_data.values_as_f32().collect::<Vec<f32>>())
+            // A subsampled channel has fewer samples than pixels: not one of ours.
+            .filter(|v| v.len() == w * h)
     };
-    let planes: Vec<Vec<f32>> =
-        RGB.iter().map(|n| find(n).ok_or_else(|| err(format!("no `{n}` channel")))).collect::<Result<_>>()?;
+    let planes: Vec<Vec<f32>> = RGB
+        .iter()
+        .map(|n| find(n).ok_or_else(|| err(format!("no full-resolution `{n}` channel"))))
+        .collect::<Result<_>>()?;
     let pixels = (0..w * h).map(|i| [planes[0][i], planes[1][i], planes[2][i]]).collect();
     let variance = VARIANCE
         .iter()

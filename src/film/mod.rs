@@ -9,14 +9,15 @@ pub use atomic::{
     Staged, check_destination, check_outputs, check_writable, commit, remove_pending_files, same_file, stage,
     write_atomically,
 };
-pub use exr_io::{read_exr, stage_exr, write_exr};
+pub use exr_io::{read_exr, read_exr_from, stage_exr, write_exr};
 pub use metrics::{Metrics, error_map_png, metrics, metrics_of_rows};
 pub use png_out::write_rgb8 as write_rgb8_png;
 pub use png_out::{stage_png, to_srgb8, write_png};
 
-/// Most pixels an image may have, rendered or read: 2^26 (e.g. 8192 × 8192). A render holds
-/// about 250 bytes per pixel at its peak (README, "errors and limits"): 17 GB at the limit,
-/// within this machine's 24 GiB.
+/// Most pixels an image may have, rendered or read: 2^26 (e.g. 8192 × 8192). A render peaks
+/// at about 95 bytes per pixel (`path`) and 172 (`zvidpt`, training passes combined), measured
+/// at 2048×2048 (README, "errors and limits"): 6.4 and 11.5 GB at the limit, within this
+/// machine's 24 GiB.
 pub const MAX_PIXELS: u64 = 1 << 26;
 
 /// A float RGB image, row-major from the top-left.

@@ -13,8 +13,9 @@ pub const MAX_RESOLUTION: u32 = 16384;
 pub const MAX_SCENE_BYTES: u64 = 16 << 20;
 /// Largest OBJ or MTL file read.
 pub const MAX_MESH_BYTES: u64 = 2 << 30;
-/// Most triangles a scene may hold (about 150 bytes each with the BVH: 10 GB).
-pub const MAX_TRIANGLES: usize = 1 << 26;
+/// Most triangles a scene may hold: about 500 bytes each at the peak of loading and the BVH
+/// build (81,920 triangles took 41 MB), so 2^25 need about 17 GB of this machine's 24 GiB.
+pub const MAX_TRIANGLES: usize = 1 << 25;
 /// Largest emitted radiance per channel (the sun's is about 1.6e9 W/(m²·sr)).
 pub const MAX_EMISSION: f32 = 1e12;
 /// Most vertices of one polygon (ear clipping is quadratic in it).
@@ -82,7 +83,13 @@ impl Scene {
     pub fn load(path: impl AsRef<Path>) -> Result<Scene> {
         let path = resolve_scene_path(path.as_ref());
         let text = read_text(&path, MAX_SCENE_BYTES, "scene file")?;
-        let description: SceneDescription = toml::from_str(&text).map_err(|e| {
+        Scene::parse(&text, &path)
+    }
+
+    /// A scene from the text of its file; `path` names it in errors and locates its meshes.
+    pub fn parse(text: &str, path: &Path) -> Result<Scene> {
+        let path = path.to_path_buf();
+        let description: SceneDescription = toml::from_str(text).map_err(|e| {
             let line = e.span().map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1);
             let message = e.message().trim().replace('\n', " ");
             Error::SceneSyntax {
@@ -95,6 +102,32 @@ impl Scene {
         })?;
         build(&path, description)
     }
+}
+
+/// Fuzzing and tests: loads OBJ text `obj` (its `mtllib` files read as `mtl`) as a scene
+/// mesh would be; returns the triangle count.
+#[doc(hidden)]
+pub fn obj_triangles(obj: &str, mtl: &str) -> Result<usize> {
+    let path = Path::new("fuzz.obj");
+    let (mut materials, mut by_name) = (Vec::new(), HashMap::new());
+    let (mut triangles, mut triangle_material) = (Vec::new(), Vec::new());
+    let mut findings = MeshFindings::default();
+    let loader = |_: &Path| parse_mtl(mtl);
+    obj_into(
+        path,
+        obj,
+        &loader,
+        &mut ObjTarget {
+            override_id: None,
+            reverse: false,
+            materials: &mut materials,
+            by_name: &mut by_name,
+            triangles: &mut triangles,
+            triangle_material: &mut triangle_material,
+            findings: &mut findings,
+        },
+    )?;
+    Ok(triangles.len())
 }
 
 fn invalid(path: &Path, message: impl Into<String>) -> Error {
@@ -216,6 +249,29 @@ struct MeshFindings {
     non_simple: usize,
 }
 
+/// Parses MTL text with tobj, after checking what tobj 4.0.5 would panic on: a colour line
+/// (`Ka`, `Kd`, `Ks`, `Ke`) with fewer than three numbers (found by fuzzing).
+fn parse_mtl(text: &str) -> tobj::MTLLoadResult {
+    for line in text.lines() {
+        let mut words = line.split_whitespace();
+        if matches!(words.next(), Some("Ka" | "Kd" | "Ks" | "Ke")) && words.count() < 3 {
+            return Err(tobj::LoadError::MaterialParseError);
+        }
+    }
+    tobj::load_mtl_buf(&mut text.as_bytes())
+}
+
+/// Where a mesh's triangles go, and how.
+struct ObjTarget<'a> {
+    override_id: Option<u32>,
+    reverse: bool,
+    materials: &'a mut Vec<Material>,
+    by_name: &'a mut HashMap<String, u32>,
+    triangles: &'a mut Vec<[Vec3A; 3]>,
+    triangle_material: &'a mut Vec<u32>,
+    findings: &'a mut MeshFindings,
+}
+
 #[allow(clippy::too_many_arguments)]
 fn load_obj(
     obj_path: &Path,
@@ -227,29 +283,52 @@ fn load_obj(
     triangle_material: &mut Vec<u32>,
     findings: &mut MeshFindings,
 ) -> Result<()> {
-    let mesh_err = |message: String| Error::Mesh { path: obj_path.to_path_buf(), message };
     if obj_path.as_os_str().is_empty() || obj_path.file_name().is_none() {
-        return Err(mesh_err("the mesh path is empty or names a folder".into()));
+        return Err(Error::Mesh {
+            path: obj_path.to_path_buf(),
+            message: "the mesh path is empty or names a folder".into(),
+        });
     }
     let text = read_text(obj_path, MAX_MESH_BYTES, "mesh (OBJ) file")?;
-    // Polygons are kept whole (tobj would fan them, wrong for concave ones) and points and
-    // lines kept too, so that nothing is dropped without a word.
-    let options =
-        tobj::LoadOptions { triangulate: false, ignore_points: false, ignore_lines: false, ..Default::default() };
     let folder = obj_path.parent().unwrap_or(Path::new("."));
     let mtl_error = std::cell::RefCell::new(None);
-    let (models, mtl) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |name| {
+    let loader = |name: &Path| {
         let path = folder.join(name);
         match read_text(&path, MAX_MESH_BYTES, "material library (MTL)") {
-            Ok(t) => tobj::load_mtl_buf(&mut t.as_bytes()),
+            Ok(t) => parse_mtl(&t),
             Err(e) => {
                 *mtl_error.borrow_mut() = Some(e.to_string());
                 Err(tobj::LoadError::OpenFileFailed)
             }
         }
+    };
+    let target = &mut ObjTarget { override_id, reverse, materials, by_name, triangles, triangle_material, findings };
+    obj_into(obj_path, &text, &loader, target).map_err(|e| match (e, mtl_error.take()) {
+        // The material library's own error says why it could not be loaded.
+        (Error::Mesh { path, message }, Some(m)) if message.contains("material library") => {
+            Error::Mesh { path, message: message.replace("(open file failed)", &format!("({m})")) }
+        }
+        (e, _) => e,
     })
-    .map_err(|e| mesh_err(format!("not a valid OBJ file ({e})")))?;
-    let mtl = mtl.map_err(|e| mtl_error.take().unwrap_or_else(|| e.to_string()));
+}
+
+/// Adds the triangles of OBJ text `text` (named `obj_path` in errors; `mtllib` files come
+/// from `mtl_loader`).
+fn obj_into(
+    obj_path: &Path,
+    text: &str,
+    mtl_loader: &dyn Fn(&Path) -> tobj::MTLLoadResult,
+    t: &mut ObjTarget,
+) -> Result<()> {
+    let ObjTarget { override_id, reverse, materials, by_name, triangles, triangle_material, findings } = t;
+    let (override_id, reverse) = (*override_id, *reverse);
+    let mesh_err = |message: String| Error::Mesh { path: obj_path.to_path_buf(), message };
+    // Polygons are kept whole (tobj would fan them, wrong for concave ones) and points and
+    // lines kept too, so that nothing is dropped without a word.
+    let options =
+        tobj::LoadOptions { triangulate: false, ignore_points: false, ignore_lines: false, ..Default::default() };
+    let (models, mtl) = tobj::load_obj_buf(&mut text.as_bytes(), &options, mtl_loader)
+        .map_err(|e| mesh_err(format!("not a valid OBJ file ({e})")))?;
     // MTL materials: a name the scene file defines wins; otherwise Kd/Ke from the MTL.
     let mut mtl_ids = Vec::new();
     match mtl {

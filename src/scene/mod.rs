@@ -5,6 +5,7 @@ pub mod description;
 mod load;
 
 pub use camera::Camera;
+pub use load::obj_triangles;
 
 use crate::geometry::spherical::{self, SphericalTriangle};
 use crate::geometry::{Hit, Ray, Vec2, Vec3A, barycentric_error, luminance, offset_ray_origin, warp};

@@ -1,0 +1,45 @@
+//! Entry points of the fuzz targets (`fuzz/`, run with `cargo fuzz run -s none TARGET`) and
+//! of the test that replays their corpora (`tests/fuzz_corpus.rs`). Each takes raw bytes and
+//! must return — an error is a fine answer — without panicking, hanging or allocating
+//! without bound.
+use crate::scene::Scene;
+use std::path::{Path, PathBuf};
+
+/// The folder whose `scene.toml` the scene target parses as (it holds a small mesh, so mesh
+/// references resolve).
+#[must_use]
+pub fn scene_folder() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/scene")
+}
+
+/// Scene files: TOML, the schema and every validation.
+pub fn scene_toml(data: &[u8]) {
+    if let Ok(text) = std::str::from_utf8(data) {
+        let _ = Scene::parse(text, &scene_folder().join("scene.toml"));
+    }
+}
+
+/// OBJ meshes: the bytes up to the first NUL are the OBJ, the rest its MTL library.
+pub fn obj(data: &[u8]) {
+    let (obj, mtl) = match data.iter().position(|&b| b == 0) {
+        Some(i) => (&data[..i], &data[i + 1..]),
+        None => (data, &[][..]),
+    };
+    if let (Ok(obj), Ok(mtl)) = (std::str::from_utf8(obj), std::str::from_utf8(mtl)) {
+        let _ = crate::scene::obj_triangles(obj, mtl);
+    }
+}
+
+/// EXR input of `diff`, `info`, `converge` and `reference`.
+pub fn exr(data: &[u8]) {
+    let _ = crate::film::read_exr_from(std::io::Cursor::new(data), Path::new("fuzz.exr"));
+}
+
+/// The command line: arguments separated by NUL bytes, parsed and validated (no render).
+pub fn cli(data: &[u8]) {
+    let args = std::iter::once("zvidpt".into())
+        .chain(data.split(|&b| b == 0).map(|a| std::ffi::OsString::from(String::from_utf8_lossy(a).into_owned())));
+    if let Ok(cli) = crate::cli::parse_from(args) {
+        let _ = crate::cli::validate(&cli);
+    }
+}
