@@ -1,0 +1,170 @@
+//! `zvidpt render`: options, their checks, the render and its outputs.
+use super::*;
+
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// Scene file, or a folder holding `scene.toml`.
+    #[arg(default_value = DEFAULT_SCENE)]
+    pub scene: PathBuf,
+    #[command(flatten)]
+    pub machine: MachineArgs,
+    /// Output EXR (linear float RGB, per-pixel variance, render metadata).
+    #[arg(short, long, default_value = "render.exr")]
+    pub output: PathBuf,
+    /// Output PNG (sRGB). Default: the EXR's path with a .png extension.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    /// Do not write a PNG.
+    #[arg(long, conflicts_with = "png")]
+    pub no_png: bool,
+    /// PNG exposure in stops (pixel values are scaled by 2^EV before sRGB encoding).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub exposure: f32,
+    /// Samples per pixel [default: 64, or unlimited when --time is given].
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Time budget in seconds: render whole passes until it is used up.
+    #[arg(long, allow_negative_numbers = true)]
+    pub time: Option<f64>,
+    /// Light-transport algorithm (`zvidpt` by default: it beats the path tracer at equal time
+    /// on every shipped scene; README, "Results").
+    #[arg(long, value_enum, default_value_t = IntegratorKind::Zvidpt)]
+    pub integrator: IntegratorKind,
+    #[command(flatten)]
+    pub photon: PhotonArgs,
+    /// Random seed; the same seed, scene and flags give the same image bytes.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Tile side in pixels (does not change the image).
+    #[arg(long, default_value_t = 32)]
+    pub tile_size: u32,
+    /// No progress bar.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+pub(super) fn check_render_options(args: &RenderArgs) -> Result<()> {
+    if args.spp == Some(0) {
+        return Err(Error::InvalidOption("--spp must be at least 1".into()));
+    }
+    if !args.exposure.is_finite() {
+        return Err(Error::InvalidOption("--exposure must be finite".into()));
+    }
+    if let Some(t) = args.time
+        && !(t.is_finite() && t > 0.0)
+    {
+        return Err(Error::InvalidOption(format!("--time must be a positive number of seconds, got {t}")));
+    }
+    if args.machine.threads == Some(0) {
+        return Err(Error::InvalidOption("--threads must be at least 1".into()));
+    }
+    args.photon.check()
+}
+
+/// Renders as the command line says; returns what it measured.
+pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
+    check_render_options(args)?;
+    let png = (!args.no_png).then(|| args.png.clone().unwrap_or_else(|| args.output.with_extension("png")));
+    // Fail before rendering if an output cannot be written or would replace what it must not.
+    if let Some(p) = &png {
+        if args.png.is_none() && film::same_file(p, &args.output) {
+            return Err(Error::InvalidOption(format!(
+                "-o {} names the EXR, and the PNG beside it would be the same file: use -o NAME.exr, --png PATH or --no-png",
+                args.output.display()
+            )));
+        }
+        if args.png.is_none() {
+            check_derived_png(p)?;
+        }
+    }
+    args.machine.backend.check_available()?;
+    let mut scene = Scene::load(locate_scene(&args.scene))?;
+    if let Some((w, h)) = args.machine.resolution {
+        scene.set_resolution(w, h)?;
+    }
+    let mut outputs = vec![("EXR", args.output.as_path())];
+    if let Some(p) = &png {
+        outputs.push(("PNG", p.as_path()));
+    }
+    let inputs: Vec<(&str, &Path)> = scene.sources.iter().map(|s| ("scene's file", s.as_path())).collect();
+    film::check_outputs(&outputs, &inputs)?;
+    // Warnings only once every option is known to be valid, so a failed run prints one line.
+    for w in &scene.warnings {
+        warn!("warning: {w}");
+    }
+    let settings = RenderSettings {
+        spp: args.spp.or(if args.time.is_some() { None } else { Some(64) }),
+        time_limit: args.time,
+        seed: args.seed,
+        threads: args.machine.threads,
+        tile_size: args.tile_size,
+        progress: !args.quiet,
+        light_sampling: args.photon.light_sampling,
+    };
+    let integrator = args.integrator;
+    let (image, stats, backend) = render_scene(&scene, integrator, &args.photon, args.machine.backend, &settings)?;
+
+    let mut meta = Metadata::default();
+    meta.push("scene", scene.path.display());
+    meta.push("integrator", flag_name(integrator));
+    meta.push("backend", backend);
+    meta.push("seed", args.seed);
+    meta.push("seconds", format!("{:.3}", stats.seconds));
+    meta.push("prepass_seconds", format!("{:.3}", stats.prepass_seconds));
+    if let Some(p) = &stats.prepass {
+        meta.push("prepass", p);
+    }
+    args.photon.describe(integrator, &mut meta);
+    meta.push("scene_hash", format!("{:016x}", scene.content_hash()));
+    meta.push("threads", stats.threads);
+    if stats.prior_spp > 0 {
+        // The image averages these pre-pass (training) samples with the `spp` final ones.
+        meta.push("final_spp", stats.spp);
+        meta.push("training_spp_in_image", stats.prior_spp);
+    }
+    meta.push("rays", stats.rays);
+    meta.push("version", crate::VERSION);
+    // Both images or neither.
+    let mut staged = vec![film::stage_exr(&args.output, &image, &meta)?];
+    if let Some(p) = &png {
+        staged.push(film::stage_png(p, &image, args.exposure)?);
+    }
+    film::commit(staged)?;
+    if stats.non_finite > 0 {
+        warn!("warning: {} samples were NaN or infinite and were dropped", stats.non_finite);
+    }
+    // The images are written: a closed or full standard output no longer fails the command.
+    let summary = || -> Result<()> {
+        if let Some(p) = &stats.prepass {
+            out!("pre-pass: {p}");
+        }
+        out!(
+            "{} {}x{}, {} spp{}, {:.2} s{}, {:.2} M samples/s, {:.2} M rays/s ({}, {}, {} threads) -> {}{}",
+            scene.name,
+            image.width,
+            image.height,
+            stats.spp,
+            if stats.prior_spp > 0 {
+                format!(" (+{} training spp in the image)", stats.prior_spp)
+            } else {
+                String::new()
+            },
+            stats.seconds,
+            if stats.prepass.is_some() { format!(" (pre-pass {:.2} s)", stats.prepass_seconds) } else { String::new() },
+            stats.samples_per_second() / 1e6,
+            stats.rays_per_second() / 1e6,
+            meta.get("integrator").unwrap_or("?"),
+            backend,
+            stats.threads,
+            args.output.display(),
+            png.as_ref().map_or(String::new(), |p| format!(", {}", p.display())),
+        );
+        Ok(())
+    };
+    if let Err(e) = summary()
+        && !e.is_broken_pipe()
+    {
+        warn!("warning: the images are written, but the summary could not be printed: {e}");
+    }
+    Ok(stats)
+}
