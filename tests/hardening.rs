@@ -286,31 +286,12 @@ fn converge_checks_its_output_folder_before_rendering() {
     std::fs::write(&file, "x").unwrap();
     let o = zvidpt(&["converge", s(&d), "--reference", s(&d.join("missing.exr")), "-o", s(&file)]);
     fails_with(&o, "is not a folder");
-    let o = zvidpt(&[
-        "converge",
-        s(&d),
-        "--reference",
-        "r.exr",
-        "-o",
-        s(&d.join("c")),
-        "--seed",
-        "18446744073709551615",
-        "--runs",
-        "2",
-    ]);
+    let out = d.join("c");
+    let converge =
+        |extra: &[&str]| zvidpt(&[&["converge", s(&d), "--reference", "r.exr", "-o", s(&out)], extra].concat());
+    let o = converge(&["--seed", "18446744073709551615", "--runs", "2"]);
     fails_with(&o, "largest seed");
-    let o = zvidpt(&[
-        "converge",
-        s(&d),
-        "--reference",
-        "r.exr",
-        "-o",
-        s(&d.join("c")),
-        "--time-to-mse",
-        "0.1",
-        "--max-spp",
-        "0",
-    ]);
+    let o = converge(&["--time-to-mse", "0.1", "--max-spp", "0"]);
     fails_with(&o, "--max-spp");
 }
 

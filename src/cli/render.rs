@@ -66,16 +66,16 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     check_render_options(args)?;
     let png = (!args.no_png).then(|| args.png.clone().unwrap_or_else(|| args.output.with_extension("png")));
     // Fail before rendering if an output cannot be written or would replace what it must not.
-    if let Some(p) = &png {
-        if args.png.is_none() && film::same_file(p, &args.output) {
+    if let Some(p) = &png
+        && args.png.is_none()
+    {
+        if film::same_file(p, &args.output) {
             return Err(Error::InvalidOption(format!(
                 "-o {} names the EXR, and the PNG beside it would be the same file: use -o NAME.exr, --png PATH or --no-png",
                 args.output.display()
             )));
         }
-        if args.png.is_none() {
-            check_derived_png(p)?;
-        }
+        check_derived_png(p)?;
     }
     args.machine.backend.check_available()?;
     let mut scene = Scene::load(locate_scene(&args.scene))?;

@@ -15,8 +15,8 @@ pub use png_out::write_rgb8 as write_rgb8_png;
 pub use png_out::{stage_png, to_srgb8, write_png};
 
 /// Most pixels an image may have, rendered or read: 2^26 (e.g. 8192 × 8192). A render peaks
-/// at about 95 bytes per pixel (`path`) and 172 (`zvidpt`, training passes combined), measured
-/// at 2048×2048 (README, "errors and limits"): 6.4 and 11.5 GB at the limit, within this
+/// at about 73 bytes per pixel (`path`) and 162 (`zvidpt`, training passes combined), measured
+/// at 2048×2048 (README, "errors and limits"): 4.9 and 10.9 GB at the limit, within this
 /// machine's 24 GiB.
 pub const MAX_PIXELS: u64 = 1 << 26;
 

@@ -31,6 +31,15 @@ pub struct PriorSamples {
 /// Variances are kept within these bounds, so weights stay finite and positive.
 const VARIANCE_RANGE: (f64, f64) = (1e-30, 1e30);
 
+/// Unbiased per-sample variance of `n ≥ 2` samples from their sum and sum of squares (never
+/// negative); also the mean. The render loop and the pass weights share it.
+#[inline]
+#[must_use]
+pub fn mean_and_variance(sum: f64, sum_sq: f64, n: f64) -> (f64, f64) {
+    let mean = sum / n;
+    (mean, ((sum_sq - n * mean * mean) / (n - 1.0)).max(0.0))
+}
+
 #[inline]
 fn parity(index: usize, width: u32) -> usize {
     let (x, y) = (index % width as usize, index / width as usize);
@@ -46,8 +55,7 @@ fn parity_variance(width: u32, spp: u32, sum: &[[f64; 3]], sum_sq: &[[f64; 3]]) 
     for (i, (s, q)) in sum.iter().zip(sum_sq).enumerate() {
         let p = parity(i, width);
         for c in 0..3 {
-            let mean = s[c] / n;
-            total[p] += ((q[c] - n * mean * mean) / (n - 1.0)).max(0.0);
+            total[p] += mean_and_variance(s[c], q[c], n).1;
         }
         count[p] += 3;
     }
@@ -92,9 +100,9 @@ impl PriorSamples {
         {
             let wi = w[parity(i, self.width)];
             for c in 0..3 {
-                let mean = s[c] / n;
+                let (mean, s2) = mean_and_variance(s[c], q[c], n);
                 acc[c] += wi * mean;
-                var[c] += wi * wi * ((q[c] - n * mean * mean) / (n - 1.0)).max(0.0) / n;
+                var[c] += wi * wi * s2 / n;
             }
         }
         self.weight[0] += w[0];
@@ -122,11 +130,10 @@ impl PriorSamples {
                 continue;
             }
             for c in 0..3 {
-                let (mean, s2) = if spp > 0 {
-                    let mean = s[c] / n;
-                    (mean, if spp > 1 { ((q[c] - n * mean * mean) / (n - 1.0)).max(0.0) } else { 0.0 })
-                } else {
-                    (0.0, 0.0)
+                let (mean, s2) = match spp {
+                    0 => (0.0, 0.0),
+                    1 => (s[c], 0.0),
+                    _ => mean_and_variance(s[c], q[c], n),
                 };
                 pixels[i][c] = ((self.weighted[i][c] + w[p] * mean) / total) as f32;
                 let var_mean =

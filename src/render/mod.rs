@@ -4,6 +4,7 @@
 use crate::accel::Accel;
 use crate::film::Image;
 use crate::geometry::{UVec2, Vec3A};
+use crate::integrator::passes::mean_and_variance;
 use crate::integrator::{Integrator, RenderContext, Scratch};
 use crate::sampler::SampleStream;
 use crate::scene::{LightSampling, Scene};
@@ -217,12 +218,10 @@ fn render_in_pool<A: Accel, I: Integrator>(
             });
         }
     }
-    if let Some(prior) = integrator.prior_samples()
-        && prior.len() != (width * height) as usize
-    {
+    let prior = integrator.prior_samples().filter(|p| !p.is_empty());
+    if prior.is_some_and(|p| p.len() != (width * height) as usize) {
         return Err(Error::InvalidOption("pre-pass samples do not match the image size".into()));
     }
-    let prior = integrator.prior_samples().filter(|p| !p.is_empty());
     let prior_spp = prior.map_or(0, |p| p.spp);
     let offset = integrator.first_sample_index();
     if settings.spp.is_some_and(|n| n.checked_add(offset).is_none()) {
@@ -261,33 +260,46 @@ fn render_in_pool<A: Accel, I: Integrator>(
     bar.finish_and_clear();
 
     let n = done as f64;
-    let mut sum = vec![[0.0f64; 3]; (width * height) as usize];
-    let mut sum_sq = vec![[0.0f64; 3]; sum.len()];
     let (mut rays, mut non_finite) = (0, 0);
     for tile in &tiles {
         rays += tile.scratch.rays;
         non_finite += tile.scratch.non_finite;
-        for (i, p) in tile.pixels() {
-            let j = (p.y * width + p.x) as usize;
-            sum[j] = tile.sum[i];
-            sum_sq[j] = tile.sum_sq[i];
-        }
     }
-    drop(tiles);
-    // Samples from before the passes (training) come in by inverse-variance weights.
     let (pixels, variance) = match prior {
-        Some(prior) => prior.combine(done, &sum, &sum_sq),
-        None => sum
-            .iter()
-            .zip(&sum_sq)
-            .map(|(s, q)| {
-                let mean = s.map(|x| x / n);
-                let var = std::array::from_fn(|c| {
-                    if n > 1.0 { ((q[c] - n * mean[c] * mean[c]) / (n - 1.0)).max(0.0) as f32 } else { 0.0 }
-                });
-                (mean.map(|x| x as f32), var)
-            })
-            .unzip(),
+        // Samples from before the passes (training) come in by inverse-variance weights, over
+        // the whole image's sums.
+        Some(prior) => {
+            let mut sum = vec![[0.0f64; 3]; (width * height) as usize];
+            let mut sum_sq = vec![[0.0f64; 3]; sum.len()];
+            for tile in &tiles {
+                for (i, p) in tile.pixels() {
+                    let j = (p.y * width + p.x) as usize;
+                    sum[j] = tile.sum[i];
+                    sum_sq[j] = tile.sum_sq[i];
+                }
+            }
+            drop(tiles);
+            prior.combine(done, &sum, &sum_sq)
+        }
+        None => {
+            let mut pixels = vec![[0.0f32; 3]; (width * height) as usize];
+            let mut variance = vec![[0.0f32; 3]; pixels.len()];
+            for tile in &tiles {
+                for (i, p) in tile.pixels() {
+                    let j = (p.y * width + p.x) as usize;
+                    for c in 0..3 {
+                        let (mean, var) = if n > 1.0 {
+                            mean_and_variance(tile.sum[i][c], tile.sum_sq[i][c], n)
+                        } else {
+                            (tile.sum[i][c] / n, 0.0)
+                        };
+                        pixels[j][c] = mean as f32;
+                        variance[j][c] = var as f32;
+                    }
+                }
+            }
+            (pixels, variance)
+        }
     };
     let stats = RenderStats {
         spp: done,

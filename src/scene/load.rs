@@ -4,6 +4,7 @@ use super::description::{MaterialDescription, SceneDescription};
 use super::{Camera, Material, Scene};
 use crate::geometry::Vec3A;
 use crate::{Error, Result};
+use std::cell::RefCell;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -108,26 +109,10 @@ impl Scene {
 /// mesh would be; returns the triangle count.
 #[doc(hidden)]
 pub fn obj_triangles(obj: &str, mtl: &str) -> Result<usize> {
-    let path = Path::new("fuzz.obj");
-    let (mut materials, mut by_name) = (Vec::new(), HashMap::new());
-    let (mut triangles, mut triangle_material) = (Vec::new(), Vec::new());
-    let mut findings = MeshFindings::default();
+    let mut meshes = Meshes::default();
     let loader = |_: &Path| parse_mtl(mtl);
-    obj_into(
-        path,
-        obj,
-        &loader,
-        &mut ObjTarget {
-            override_id: None,
-            reverse: false,
-            materials: &mut materials,
-            by_name: &mut by_name,
-            triangles: &mut triangles,
-            triangle_material: &mut triangle_material,
-            findings: &mut findings,
-        },
-    )?;
-    Ok(triangles.len())
+    obj_into(Path::new("fuzz.obj"), obj, &loader, &RefCell::new(None), None, false, &mut meshes)?;
+    Ok(meshes.triangles.len())
 }
 
 fn invalid(path: &Path, message: impl Into<String>) -> Error {
@@ -175,17 +160,13 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
     let camera = Camera::new(vec3(c.eye), vec3(c.look_at), vec3(c.up), c.fov_y, c.width, c.height)
         .ok_or_else(|| invalid(path, "camera: eye equals look_at, or up is parallel to the view direction"))?;
 
-    let mut materials = Vec::new();
-    let mut by_name: HashMap<String, u32> = HashMap::new();
+    let mut meshes = Meshes::default();
     for (name, m) in &d.materials {
-        by_name.insert(name.clone(), materials.len() as u32);
-        materials.push(material_from(path, name, m)?);
+        meshes.by_name.insert(name.clone(), meshes.materials.len() as u32);
+        meshes.materials.push(material_from(path, name, m)?);
     }
 
     let folder = path.parent().unwrap_or(Path::new("."));
-    let mut triangles = Vec::new();
-    let mut triangle_material = Vec::new();
-    let mut findings = MeshFindings::default();
     let mut sources = Vec::new();
     for mesh in &d.meshes {
         if mesh.obj.is_empty() {
@@ -195,23 +176,16 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
         sources.push(obj_path.clone());
         let override_id = match &mesh.material {
             Some(name) => Some(
-                *by_name
+                *meshes
+                    .by_name
                     .get(name)
                     .ok_or_else(|| invalid(path, format!("mesh `{}`: unknown material `{name}`", mesh.obj)))?,
             ),
             None => None,
         };
-        load_obj(
-            &obj_path,
-            override_id,
-            mesh.reverse_winding,
-            &mut materials,
-            &mut by_name,
-            &mut triangles,
-            &mut triangle_material,
-            &mut findings,
-        )?;
+        load_obj(&obj_path, override_id, mesh.reverse_winding, &mut meshes)?;
     }
+    let Meshes { materials, triangles, triangle_material, findings, .. } = meshes;
     if triangles.is_empty() {
         return Err(invalid(path, "the scene has no (non-degenerate) triangles"));
     }
@@ -261,28 +235,18 @@ fn parse_mtl(text: &str) -> tobj::MTLLoadResult {
     tobj::load_mtl_buf(&mut text.as_bytes())
 }
 
-/// Where a mesh's triangles go, and how.
-struct ObjTarget<'a> {
-    override_id: Option<u32>,
-    reverse: bool,
-    materials: &'a mut Vec<Material>,
-    by_name: &'a mut HashMap<String, u32>,
-    triangles: &'a mut Vec<[Vec3A; 3]>,
-    triangle_material: &'a mut Vec<u32>,
-    findings: &'a mut MeshFindings,
+/// The scene's materials (by name too) and the triangles its meshes added so far.
+#[derive(Default)]
+struct Meshes {
+    materials: Vec<Material>,
+    by_name: HashMap<String, u32>,
+    triangles: Vec<[Vec3A; 3]>,
+    triangle_material: Vec<u32>,
+    findings: MeshFindings,
 }
 
-#[allow(clippy::too_many_arguments)]
-fn load_obj(
-    obj_path: &Path,
-    override_id: Option<u32>,
-    reverse: bool,
-    materials: &mut Vec<Material>,
-    by_name: &mut HashMap<String, u32>,
-    triangles: &mut Vec<[Vec3A; 3]>,
-    triangle_material: &mut Vec<u32>,
-    findings: &mut MeshFindings,
-) -> Result<()> {
+/// Adds the triangles of the OBJ file `obj_path` (its `mtllib` files read beside it).
+fn load_obj(obj_path: &Path, override_id: Option<u32>, reverse: bool, meshes: &mut Meshes) -> Result<()> {
     if obj_path.as_os_str().is_empty() || obj_path.file_name().is_none() {
         return Err(Error::Mesh {
             path: obj_path.to_path_buf(),
@@ -291,37 +255,33 @@ fn load_obj(
     }
     let text = read_text(obj_path, MAX_MESH_BYTES, "mesh (OBJ) file")?;
     let folder = obj_path.parent().unwrap_or(Path::new("."));
-    let mtl_error = std::cell::RefCell::new(None);
+    // tobj only learns that a library failed; why goes here.
+    let mtl_note = RefCell::new(None);
     let loader = |name: &Path| {
         let path = folder.join(name);
         match read_text(&path, MAX_MESH_BYTES, "material library (MTL)") {
             Ok(t) => parse_mtl(&t),
             Err(e) => {
-                *mtl_error.borrow_mut() = Some(e.to_string());
+                *mtl_note.borrow_mut() = Some(e.to_string());
                 Err(tobj::LoadError::OpenFileFailed)
             }
         }
     };
-    let target = &mut ObjTarget { override_id, reverse, materials, by_name, triangles, triangle_material, findings };
-    obj_into(obj_path, &text, &loader, target).map_err(|e| match (e, mtl_error.take()) {
-        // The material library's own error says why it could not be loaded.
-        (Error::Mesh { path, message }, Some(m)) if message.contains("material library") => {
-            Error::Mesh { path, message: message.replace("(open file failed)", &format!("({m})")) }
-        }
-        (e, _) => e,
-    })
+    obj_into(obj_path, &text, &loader, &mtl_note, override_id, reverse, meshes)
 }
 
 /// Adds the triangles of OBJ text `text` (named `obj_path` in errors; `mtllib` files come
-/// from `mtl_loader`).
+/// from `mtl_loader`, which may leave in `mtl_note` why one could not be loaded).
 fn obj_into(
     obj_path: &Path,
     text: &str,
     mtl_loader: &dyn Fn(&Path) -> tobj::MTLLoadResult,
-    t: &mut ObjTarget,
+    mtl_note: &RefCell<Option<String>>,
+    override_id: Option<u32>,
+    reverse: bool,
+    meshes: &mut Meshes,
 ) -> Result<()> {
-    let ObjTarget { override_id, reverse, materials, by_name, triangles, triangle_material, findings } = t;
-    let (override_id, reverse) = (*override_id, *reverse);
+    let Meshes { materials, by_name, triangles, triangle_material, findings } = meshes;
     let mesh_err = |message: String| Error::Mesh { path: obj_path.to_path_buf(), message };
     // Polygons are kept whole (tobj would fan them, wrong for concave ones) and points and
     // lines kept too, so that nothing is dropped without a word.
@@ -351,8 +311,9 @@ fn obj_into(
             }
         }
         Err(e) if override_id.is_none() => {
+            let why = mtl_note.take().unwrap_or_else(|| e.to_string());
             return Err(mesh_err(format!(
-                "its material library could not be loaded ({e}); add one or give the mesh `material = \"...\"`"
+                "its material library could not be loaded ({why}); add one or give the mesh `material = \"...\"`"
             )));
         }
         Err(_) => {}
