@@ -289,7 +289,8 @@ mod tests {
         assert_eq!(std::fs::read_to_string(&a).unwrap(), "new a");
         assert_eq!(std::fs::read_to_string(&b).unwrap(), "new b");
         assert!(leftovers(&dir).is_empty(), "{:?}", leftovers(&dir));
-        assert!(pending().is_empty());
+        // Other tests run alongside and register their own files: only this folder's count.
+        assert!(!pending().iter().any(|p| p.starts_with(&dir)), "{:?}", pending());
     }
 
     #[test]

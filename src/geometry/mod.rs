@@ -1,4 +1,5 @@
 //! Rays, preliminary hits, local frames, robust ray offsets and sampling warps.
+pub mod fastmath;
 mod frame;
 mod offset;
 pub mod polygon;

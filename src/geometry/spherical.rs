@@ -6,6 +6,7 @@
 //! triangle is small or seen edge-on, and a sample must land inside the triangle for its
 //! density `1/Ω` to be the right one. Callers fall back to area sampling below
 //! [`MIN_SOLID_ANGLE`], where `cosθx·cosθy/d²` is nearly constant anyway.
+use super::fastmath;
 use glam::{DVec3, Vec2, Vec3A};
 
 /// Below this solid angle (steradians) a triangle is sampled by area instead: Arvo's
@@ -59,29 +60,79 @@ pub struct PartStats {
 #[inline]
 #[must_use]
 pub fn part_stats(x: Vec3A, v: &[Vec3A; 3], n: Vec3A) -> Option<PartStats> {
-    // f32 (the choice's probabilities need only be computed the same way each time, not
-    // exactly; f64 atan2 made this a quarter of a path tracer's time on cornell-paper). A
-    // cubic polynomial atan2 (~1e-4 rad) was faster still but its weights raised one NEE
-    // sample's deviation at (0.3, 0.999, 0.25) from < 0.05 to 0.08: the tests caught it.
-    let a = (v[0] - x).try_normalize()?;
-    let b = (v[1] - x).try_normalize()?;
-    let c = (v[2] - x).try_normalize()?;
+    let [a, b, c] = unit_corners(x, v)?;
+    stats_from([a, b, c], [edge_term(a, b, n), edge_term(b, c, n), edge_term(c, a, n)], n)
+}
+
+/// The unit directions from `x` to the corners of `v` in f32; `None` on a corner.
+#[inline]
+#[must_use]
+pub fn unit_corners(x: Vec3A, v: &[Vec3A; 3]) -> Option<[Vec3A; 3]> {
+    Some([(v[0] - x).try_normalize()?, (v[1] - x).try_normalize()?, (v[2] - x).try_normalize()?])
+}
+
+/// Lambert's term of the arc from unit `p` to unit `q` for normal `n`: the arc's angle times
+/// `n` · the unit normal of its great circle (half the sum over a triangle's edges is its
+/// projected solid angle). Reversing the arc negates it.
+//
+// f32 (the choice's probabilities need only be computed the same way each time, not exactly;
+// f64 atan2 made this a quarter of a path tracer's time on cornell-paper), with a degree-15
+// polynomial atan2 accurate to 3e-7 rad (glibc's atan2f was a fifth of zvidpt's time). A cubic
+// one (~1e-4 rad) raised one NEE sample's deviation at (0.3, 0.999, 0.25) from < 0.05 to 0.08:
+// the tests caught it.
+#[inline]
+fn edge_term(p: Vec3A, q: Vec3A, n: Vec3A) -> f32 {
+    let cross = p.cross(q);
+    let len = cross.length();
+    if len > 0.0 { fastmath::atan2(len, p.dot(q)) * n.dot(cross) / len } else { 0.0 }
+}
+
+/// [`PartStats`] of the triangle with unit corner directions `d` from the Lambert terms of its
+/// edges `d0→d1`, `d1→d2`, `d2→d0`.
+#[inline]
+fn stats_from([a, b, c]: [Vec3A; 3], edges: [f32; 3], n: Vec3A) -> Option<PartStats> {
     let triple = a.dot(b.cross(c));
-    let omega = 2.0 * triple.abs().atan2(1.0 + a.dot(b) + b.dot(c) + c.dot(a));
-    let mut sum = 0.0;
-    for (p, q) in [(a, b), (b, c), (c, a)] {
-        let cross = p.cross(q);
-        let len = cross.length();
-        if len > 0.0 {
-            sum += len.atan2(p.dot(q)) * n.dot(cross) / len;
-        }
-    }
-    let projected = 0.5 * sum * triple.signum();
+    let omega = 2.0 * fastmath::atan2(triple.abs(), 1.0 + a.dot(b) + b.dot(c) + c.dot(a));
+    let projected = 0.5 * (edges[0] + edges[1] + edges[2]) * triple.signum();
     (omega.is_finite() && projected.is_finite()).then_some(PartStats {
         projected,
         omega,
         cosines: [n.dot(a), n.dot(b), n.dot(c)],
     })
+}
+
+/// Triangle `v` (unit corner directions `d` from `x`) cut in four by its edge midpoints: the
+/// parts `[v0, m01, m20]`, `[m01, v1, m12]`, `[m20, m12, v2]`, `[m01, m12, m20]`, their unit
+/// corner directions, and their [`PartStats`] (`None` for a part `x` is a corner of). The nine
+/// arcs the parts share are each evaluated once.
+#[must_use]
+pub fn subdivide(
+    x: Vec3A,
+    v: &[Vec3A; 3],
+    d: &[Vec3A; 3],
+    n: Vec3A,
+) -> ([[Vec3A; 3]; 4], [[Vec3A; 3]; 4], [Option<PartStats>; 4]) {
+    let (m01, m12, m20) = ((v[0] + v[1]) * 0.5, (v[1] + v[2]) * 0.5, (v[2] + v[0]) * 0.5);
+    let parts = [[v[0], m01, m20], [m01, v[1], m12], [m20, m12, v[2]], [m01, m12, m20]];
+    let dir = |p: Vec3A| (p - x).try_normalize();
+    let (Some(e01), Some(e12), Some(e20)) = (dir(m01), dir(m12), dir(m20)) else {
+        return (parts, [*d; 4], [None; 4]);
+    };
+    let [d0, d1, d2] = *d;
+    let dirs = [[d0, e01, e20], [e01, d1, e12], [e20, e12, d2], [e01, e12, e20]];
+    // Halves of the outer edges, and the three inner arcs (shared by the middle part and,
+    // reversed, by one corner part each).
+    let (a0, a1) = (edge_term(d0, e01, n), edge_term(e01, d1, n));
+    let (b0, b1) = (edge_term(d1, e12, n), edge_term(e12, d2, n));
+    let (c0, c1) = (edge_term(d2, e20, n), edge_term(e20, d0, n));
+    let (i01_12, i12_20, i20_01) = (edge_term(e01, e12, n), edge_term(e12, e20, n), edge_term(e20, e01, n));
+    let stats = [
+        stats_from(dirs[0], [a0, -i20_01, c1], n),
+        stats_from(dirs[1], [a1, b0, -i01_12], n),
+        stats_from(dirs[2], [-i12_20, b1, c0], n),
+        stats_from(dirs[3], [i01_12, i12_20, i20_01], n),
+    ];
+    (parts, dirs, stats)
 }
 
 /// Corner weights for [`crate::geometry::warp::bilinear`] in the layout of
