@@ -14,7 +14,7 @@ const ATAN_COEFFS: [f32; 8] = [
     0.099_144_04,
     -0.059_487_84,
     0.024_253_367,
-    -0.004_693_532_6,
+    -0.004_693_533,
 ];
 
 /// `atan2(y, x)` in `(-π, π]` with an absolute error below 4e-7 rad (f32's ulp at π is 2.4e-7). Returns 0 for `(0, 0)` and

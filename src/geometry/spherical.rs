@@ -101,17 +101,15 @@ fn stats_from([a, b, c]: [Vec3A; 3], edges: [f32; 3], n: Vec3A) -> Option<PartSt
     })
 }
 
+/// Four parts of a triangle: their corners, unit corner directions and [`PartStats`].
+pub type Subdivision = ([[Vec3A; 3]; 4], [[Vec3A; 3]; 4], [Option<PartStats>; 4]);
+
 /// Triangle `v` (unit corner directions `d` from `x`) cut in four by its edge midpoints: the
 /// parts `[v0, m01, m20]`, `[m01, v1, m12]`, `[m20, m12, v2]`, `[m01, m12, m20]`, their unit
 /// corner directions, and their [`PartStats`] (`None` for a part `x` is a corner of). The nine
 /// arcs the parts share are each evaluated once.
 #[must_use]
-pub fn subdivide(
-    x: Vec3A,
-    v: &[Vec3A; 3],
-    d: &[Vec3A; 3],
-    n: Vec3A,
-) -> ([[Vec3A; 3]; 4], [[Vec3A; 3]; 4], [Option<PartStats>; 4]) {
+pub fn subdivide(x: Vec3A, v: &[Vec3A; 3], d: &[Vec3A; 3], n: Vec3A) -> Subdivision {
     let (m01, m12, m20) = ((v[0] + v[1]) * 0.5, (v[1] + v[2]) * 0.5, (v[2] + v[0]) * 0.5);
     let parts = [[v[0], m01, m20], [m01, v[1], m12], [m20, m12, v[2]], [m01, m12, m20]];
     let dir = |p: Vec3A| (p - x).try_normalize();

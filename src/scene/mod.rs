@@ -437,7 +437,7 @@ impl Scene {
             // `u.x` picks the part; rescaled, it is uniform again for what follows.
             let total = weights.iter().sum();
             let (k, p, ux) = warp::pick_by_weight_reusing(&weights, total, u_point.x)?;
-            let Some(chosen) = stats[k] else { return None };
+            let chosen = stats[k]?;
             (tri, part, pmf, u_point.x, cut, dirs) = (parts[k], chosen, pmf * p, ux, true, Some(part_dirs[k]));
         }
         // A part of at least 64·MIN_SOLID_ANGLE / 4 steradians: Arvo's construction is sound.
