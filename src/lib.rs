@@ -9,6 +9,7 @@
 #![deny(unsafe_op_in_unsafe_fn)]
 
 pub mod accel;
+pub mod batch;
 pub mod cli;
 pub mod converge;
 pub mod error;

@@ -37,12 +37,15 @@ macro_rules! warn {
     }};
 }
 
+mod batch;
 mod converge;
 mod diff;
 mod info;
 mod reference;
 mod render;
 
+pub use batch::BatchArgs;
+use batch::{check_batch_options, run_batch};
 pub use converge::ConvergeArgs;
 use converge::{check_converge_options, run_converge};
 pub use diff::DiffArgs;
@@ -84,6 +87,10 @@ pub enum Command {
     /// Measure MSE and relMSE against a reference for several integrators and sample counts,
     /// averaged over independent seeds; writes CSVs into a folder.
     Converge(ConvergeArgs),
+    /// Render a job file of scenes × integrators × budgets one job after another: jobs whose
+    /// output already holds the same render are skipped (rerun to resume), a failed job is
+    /// recorded and the rest go on; writes summary.csv and summary.json.
+    Batch(BatchArgs),
 }
 
 /// Light-transport algorithm.
@@ -373,6 +380,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Info(args) => run_info(&args),
         Command::Reference(args) => run_reference(&args),
         Command::Converge(args) => run_converge(&args),
+        Command::Batch(args) => run_batch(&args),
     }
 }
 
@@ -444,6 +452,7 @@ pub fn validate(cli: &Cli) -> Result<()> {
         Command::Render(a) => check_render_options(a),
         Command::Converge(a) => check_converge_options(a),
         Command::Reference(a) => check_reference_options(a),
+        Command::Batch(a) => check_batch_options(a),
         Command::Diff(_) | Command::Info(_) => Ok(()),
     }
 }

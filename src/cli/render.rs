@@ -41,6 +41,10 @@ pub struct RenderArgs {
     /// No progress bar.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Set by `zvidpt batch`: the job's fingerprint, kept in the metadata so that a rerun of
+    /// the batch skips this render.
+    #[arg(long, hide = true)]
+    pub job_key: Option<String>,
 }
 
 pub(super) fn check_render_options(args: &RenderArgs) -> Result<()> {
@@ -61,6 +65,15 @@ pub(super) fn check_render_options(args: &RenderArgs) -> Result<()> {
     args.photon.check()
 }
 
+/// The scene as the command line sets it up (its resolution overridden).
+pub(super) fn load_scene(args: &RenderArgs) -> Result<Scene> {
+    let mut scene = Scene::load(locate_scene(&args.scene))?;
+    if let Some((w, h)) = args.machine.resolution {
+        scene.set_resolution(w, h)?;
+    }
+    Ok(scene)
+}
+
 /// Renders as the command line says; returns what it measured.
 pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     check_render_options(args)?;
@@ -78,10 +91,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         check_derived_png(p)?;
     }
     args.machine.backend.check_available()?;
-    let mut scene = Scene::load(locate_scene(&args.scene))?;
-    if let Some((w, h)) = args.machine.resolution {
-        scene.set_resolution(w, h)?;
-    }
+    let scene = load_scene(args)?;
     let mut outputs = vec![("EXR", args.output.as_path())];
     if let Some(p) = &png {
         outputs.push(("PNG", p.as_path()));
@@ -124,6 +134,9 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     }
     meta.push("rays", stats.rays);
     meta.push("version", crate::VERSION);
+    if let Some(key) = &args.job_key {
+        meta.push("job", key);
+    }
     // Both images or neither.
     let mut staged = vec![film::stage_exr(&args.output, &image, &meta)?];
     if let Some(p) = &png {

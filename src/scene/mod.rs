@@ -6,6 +6,7 @@ mod load;
 
 pub use camera::Camera;
 pub use load::obj_triangles;
+pub(crate) use load::read_text;
 
 use crate::geometry::spherical::{self, SphericalTriangle};
 use crate::geometry::{Hit, Ray, Vec2, Vec3A, barycentric_error, luminance, offset_ray_origin, warp};

@@ -1,0 +1,153 @@
+//! `zvidpt batch`: runs a job file through [`crate::batch`], each job as `zvidpt render` with
+//! the job's flags, and writes the summary.
+use super::*;
+use crate::batch::{self, BatchOptions, Job, Outcome, Report, Runner, Status};
+
+#[derive(Debug, Args)]
+pub struct BatchArgs {
+    /// The job file (TOML: [defaults], [[job]] tables, [[matrix]] tables; README, "Batches").
+    pub jobs: PathBuf,
+    /// Jobs rendered at once, each with its share of the threads.
+    #[arg(long, default_value_t = 1)]
+    pub parallel: usize,
+    /// Threads in all [default: one per core].
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Folder for summary.csv and summary.json [default: the job file's folder].
+    #[arg(long)]
+    pub summary_dir: Option<PathBuf>,
+    /// List the jobs (and which would be skipped) without rendering.
+    #[arg(long)]
+    pub dry_run: bool,
+}
+
+pub(super) fn check_batch_options(args: &BatchArgs) -> Result<()> {
+    if args.parallel == 0 {
+        return Err(Error::InvalidOption("--parallel must be at least 1".into()));
+    }
+    if args.threads == Some(0) {
+        return Err(Error::InvalidOption("--threads must be at least 1".into()));
+    }
+    Ok(())
+}
+
+/// `zvidpt render`'s arguments alone, for parsing a job.
+#[derive(Debug, Parser)]
+#[command(name = "zvidpt render", no_binary_name = true)]
+struct RenderLine {
+    #[command(flatten)]
+    args: RenderArgs,
+}
+
+fn render_args(job: &Job) -> Result<RenderArgs> {
+    let mut line = RenderLine::try_parse_from(&job.args)
+        .map_err(|e| Error::InvalidOption(e.to_string().lines().next().unwrap_or("").trim().to_string()))?
+        .args;
+    if line.job_key.is_some() {
+        return Err(Error::InvalidOption("`job_key` is set by the batch itself".into()));
+    }
+    line.job_key = Some(job.key());
+    Ok(line)
+}
+
+/// Jobs run as `zvidpt render`.
+struct Renders {
+    /// Progress bars only when one job runs at a time.
+    quiet: bool,
+}
+
+impl Runner for Renders {
+    fn check(&self, job: &Job) -> Result<()> {
+        check_render_options(&render_args(job)?)
+    }
+
+    fn is_done(&self, job: &Job) -> bool {
+        let Ok(args) = render_args(job) else { return false };
+        let Ok((_, meta)) = film::read_exr(&args.output) else { return false };
+        if meta.get("job") != args.job_key.as_deref() {
+            return false;
+        }
+        // The same flags on an edited scene render anew.
+        render::load_scene(&args)
+            .is_ok_and(|s| meta.get("scene_hash") == Some(format!("{:016x}", s.content_hash()).as_str()))
+    }
+
+    fn render(&self, job: &Job, threads: Option<usize>) -> Result<Outcome> {
+        let mut args = render_args(job)?;
+        if args.machine.threads.is_none() {
+            args.machine.threads = threads;
+        }
+        args.quiet |= self.quiet;
+        // The job file asked for this output: its folder is made if missing.
+        if let Some(parent) = args.output.parent().filter(|p| !p.as_os_str().is_empty() && !p.exists()) {
+            std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
+        }
+        let stats = run_render(&args)?;
+        Ok(Outcome {
+            seconds: stats.seconds,
+            spp: stats.spp,
+            samples_per_second: stats.samples_per_second(),
+            rays_per_second: stats.rays_per_second(),
+        })
+    }
+
+    fn mse(&self, job: &Job, reference: &Path) -> Result<f64> {
+        let (image, _) = film::read_exr(&job.output)?;
+        let (reference, _) = film::read_exr(reference)?;
+        Ok(film::metrics(&image, &reference)?.mse)
+    }
+}
+
+pub fn run_batch(args: &BatchArgs) -> Result<()> {
+    check_batch_options(args)?;
+    let jobs = batch::load(&args.jobs)?;
+    let runner = Renders { quiet: args.parallel > 1 };
+    if args.dry_run {
+        for job in &jobs {
+            runner.check(job).map_err(|e| Error::InvalidOption(format!("{}: {e}", job.origin)))?;
+            let state = if runner.is_done(job) { "done" } else { "to render" };
+            out!("{:<10} {}  zvidpt render {}", state, job.origin, job.args.join(" "));
+        }
+        return Ok(());
+    }
+    let summary_dir = match &args.summary_dir {
+        Some(d) => d.clone(),
+        None => match args.jobs.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        },
+    };
+    let (csv, json) = (summary_dir.join("summary.csv"), summary_dir.join("summary.json"));
+    // Fail before hours of rendering if the summary cannot be written.
+    film::check_writable(&csv)?;
+    film::check_writable(&json)?;
+    let total = jobs.len();
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let progress = |r: &Report| {
+        let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        let what = match (r.status, &r.error) {
+            (Status::Failed, Some(e)) => format!("failed: {e}"),
+            (s, _) => s.name().to_string(),
+        };
+        warn!("[{n}/{total}] {} {}: {what}", r.job.origin, r.job.output.display());
+    };
+    let options = BatchOptions { parallel: args.parallel, threads: args.threads };
+    let reports = batch::run(&jobs, &runner, options, &progress)?;
+    film::commit(vec![
+        film::stage(&csv, |w| {
+            use std::io::Write as _;
+            w.write_all(batch::summary_csv(&reports).as_bytes()).map_err(|e| Error::io(&csv, e))
+        })?,
+        film::stage(&json, |w| {
+            use std::io::Write as _;
+            w.write_all(batch::summary_json(&reports).as_bytes()).map_err(|e| Error::io(&json, e))
+        })?,
+    ])?;
+    out_part!("{}", batch::summary_table(&reports));
+    out!("summary: {}, {}", csv.display(), json.display());
+    let failed = reports.iter().filter(|r| r.status == Status::Failed).count();
+    if failed > 0 {
+        return Err(Error::InvalidOption(format!("{failed} of {total} jobs failed (see {})", csv.display())));
+    }
+    Ok(())
+}
