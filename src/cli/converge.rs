@@ -145,6 +145,7 @@ impl ConvergeArgs {
     /// The render settings of one convergence render: a sample count or a time budget.
     fn settings(&self, spp: Option<u32>, time_limit: Option<f64>, seed: u64) -> RenderSettings {
         RenderSettings {
+            samples: None,
             spp,
             time_limit,
             seed,

@@ -41,6 +41,7 @@ mod batch;
 mod converge;
 mod diff;
 mod info;
+mod merge;
 mod reference;
 mod render;
 
@@ -52,6 +53,8 @@ pub use diff::DiffArgs;
 use diff::run_diff;
 pub use info::InfoArgs;
 use info::run_info;
+pub use merge::MergeArgs;
+use merge::run_merge;
 pub use reference::ReferenceArgs;
 use reference::{check_reference_options, run_reference};
 use render::check_render_options;
@@ -91,6 +94,9 @@ pub enum Command {
     /// output already holds the same render are skipped (rerun to resume), a failed job is
     /// recorded and the rest go on; writes summary.csv and summary.json.
     Batch(BatchArgs),
+    /// Merge partial renders of sample ranges (`render --samples A..B`) into one image,
+    /// bit-identical to a single render of all the samples.
+    Merge(MergeArgs),
 }
 
 /// Light-transport algorithm.
@@ -381,6 +387,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Reference(args) => run_reference(&args),
         Command::Converge(args) => run_converge(&args),
         Command::Batch(args) => run_batch(&args),
+        Command::Merge(args) => run_merge(&args),
     }
 }
 
@@ -453,7 +460,7 @@ pub fn validate(cli: &Cli) -> Result<()> {
         Command::Converge(a) => check_converge_options(a),
         Command::Reference(a) => check_reference_options(a),
         Command::Batch(a) => check_batch_options(a),
-        Command::Diff(_) | Command::Info(_) => Ok(()),
+        Command::Diff(_) | Command::Info(_) | Command::Merge(_) => Ok(()),
     }
 }
 

@@ -60,6 +60,7 @@ pub(super) fn run_reference(args: &ReferenceArgs) -> Result<()> {
     let inputs: Vec<(&str, &Path)> = scene.sources.iter().map(|s| ("scene's file", s.as_path())).collect();
     film::check_outputs(&[("EXR", &args.output), ("PNG", &png)], &inputs)?;
     let settings = RenderSettings {
+        samples: None,
         spp: Some(args.spp),
         time_limit: None,
         seed: args.seed,

@@ -23,6 +23,11 @@ pub struct RenderArgs {
     /// Samples per pixel [default: 64, or unlimited when --time is given].
     #[arg(long)]
     pub spp: Option<u32>,
+    /// Render only samples A..B of every pixel (of an --spp render) into a partial file at
+    /// -o, for `zvidpt merge` (a Slurm array task's share, say). Parts of 0..spp merge into
+    /// pixels bit-identical to one render.
+    #[arg(long, value_parser = parse_sample_range, value_name = "A..B")]
+    pub samples: Option<(u32, u32)>,
     /// Time budget in seconds: render whole passes until it is used up.
     #[arg(long, allow_negative_numbers = true)]
     pub time: Option<f64>,
@@ -62,6 +67,19 @@ pub(super) fn check_render_options(args: &RenderArgs) -> Result<()> {
     if args.machine.threads == Some(0) {
         return Err(Error::InvalidOption("--threads must be at least 1".into()));
     }
+    if let Some((a, b)) = args.samples {
+        let Some(n) = args.spp else {
+            return Err(Error::InvalidOption("--samples A..B needs --spp N, the whole render's sample count".into()));
+        };
+        if args.time.is_some() {
+            return Err(Error::InvalidOption("--samples cannot be used with --time".into()));
+        }
+        if !(a < b && b <= n) {
+            return Err(Error::InvalidOption(format!(
+                "--samples {a}..{b} must lie within 0..{n} (--spp) and hold a sample"
+            )));
+        }
+    }
     args.photon.check()
 }
 
@@ -77,7 +95,9 @@ pub(super) fn load_scene(args: &RenderArgs) -> Result<Scene> {
 /// Renders as the command line says; returns what it measured.
 pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     check_render_options(args)?;
-    let png = (!args.no_png).then(|| args.png.clone().unwrap_or_else(|| args.output.with_extension("png")));
+    // A partial render is a file of sums: no PNG.
+    let png = (!args.no_png && args.samples.is_none())
+        .then(|| args.png.clone().unwrap_or_else(|| args.output.with_extension("png")));
     // Fail before rendering if an output cannot be written or would replace what it must not.
     if let Some(p) = &png
         && args.png.is_none()
@@ -110,6 +130,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         tile_size: args.tile_size,
         progress: !args.quiet,
         light_sampling: args.photon.light_sampling,
+        samples: args.samples,
     };
     let integrator = args.integrator;
     let (image, stats, backend) = render_scene(&scene, integrator, &args.photon, args.machine.backend, &settings)?;
@@ -137,8 +158,15 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     if let Some(key) = &args.job_key {
         meta.push("job", key);
     }
+    if let Some((a, b)) = args.samples {
+        meta.push("samples", format!("{a}..{b}"));
+        meta.push("spp_total", args.spp.unwrap_or(0));
+    }
     // Both images or neither.
-    let mut staged = vec![film::stage_exr(&args.output, &image, &meta)?];
+    let mut staged = vec![match &stats.partial {
+        Some(part) => film::stage_partial(&args.output, part, &meta)?,
+        None => film::stage_exr(&args.output, &image, &meta)?,
+    }];
     if let Some(p) = &png {
         staged.push(film::stage_png(p, &image, args.exposure)?);
     }
@@ -180,4 +208,15 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         warn!("warning: the images are written, but the summary could not be printed: {e}");
     }
     Ok(stats)
+}
+
+/// `A..B` (sample indices, B exclusive).
+fn parse_sample_range(s: &str) -> std::result::Result<(u32, u32), String> {
+    let (a, b) = s.split_once("..").ok_or_else(|| format!("expected A..B, e.g. 0..64, got '{s}'"))?;
+    let parse = |t: &str| t.trim().parse::<u32>().map_err(|e| format!("'{t}' in '{s}': {e}"));
+    let (a, b) = (parse(a)?, parse(b)?);
+    if a >= b {
+        return Err(format!("'{s}' holds no sample (A must be below B)"));
+    }
+    Ok((a, b))
 }

@@ -12,7 +12,7 @@
 
 /// Per-pixel sums (row-major, linear RGB) of passes taken before the final passes, already
 /// weighted; [`Self::combine`] adds the final passes.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct PriorSamples {
     /// Samples per pixel in all passes added.
     pub spp: u32,
@@ -67,6 +67,59 @@ fn parity_variance(width: u32, spp: u32, sum: &[[f64; 3]], sum_sq: &[[f64; 3]]) 
 }
 
 impl PriorSamples {
+    /// Appends these samples to `out` (little-endian; read back by [`Self::decode`]).
+    pub fn encode(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&self.spp.to_le_bytes());
+        out.extend_from_slice(&self.width.to_le_bytes());
+        out.extend_from_slice(&(self.weighted.len() as u64).to_le_bytes());
+        for v in self.weight.iter().chain(self.last.unwrap_or([0.0; 2]).iter()) {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out.push(u8::from(self.last.is_some()));
+        for p in self.weighted.iter().chain(&self.variance) {
+            for v in p {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+    }
+
+    /// Reads what [`Self::encode`] wrote from the front of `bytes` (advancing it); `None` if it
+    /// is malformed or does not hold `pixels` pixels.
+    pub fn decode(bytes: &mut &[u8], pixels: usize) -> Option<Self> {
+        fn take<const N: usize>(b: &mut &[u8]) -> Option<[u8; N]> {
+            let (head, rest) = b.split_first_chunk::<N>()?;
+            *b = rest;
+            Some(*head)
+        }
+        let spp = u32::from_le_bytes(take(bytes)?);
+        let width = u32::from_le_bytes(take(bytes)?);
+        let n = u64::from_le_bytes(take(bytes)?);
+        if n != pixels as u64 || width == 0 || n % u64::from(width) != 0 {
+            return None;
+        }
+        let weight = [f64::from_le_bytes(take(bytes)?), f64::from_le_bytes(take(bytes)?)];
+        let last = [f64::from_le_bytes(take(bytes)?), f64::from_le_bytes(take(bytes)?)];
+        let last = match take::<1>(bytes)? {
+            [0] => None,
+            [1] => Some(last),
+            _ => return None,
+        };
+        let mut read = |count: usize| -> Option<Vec<[f64; 3]>> {
+            (0..count)
+                .map(|_| {
+                    Some([
+                        f64::from_le_bytes(take(bytes)?),
+                        f64::from_le_bytes(take(bytes)?),
+                        f64::from_le_bytes(take(bytes)?),
+                    ])
+                })
+                .collect()
+        };
+        let weighted = read(pixels)?;
+        let variance = read(pixels)?;
+        Some(Self { spp, width, weighted, variance, weight, last })
+    }
+
     #[must_use]
     pub fn new(width: u32, height: u32) -> Self {
         let n = width as usize * height as usize;

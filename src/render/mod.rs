@@ -4,7 +4,7 @@
 use crate::accel::Accel;
 use crate::film::Image;
 use crate::geometry::{UVec2, Vec3A};
-use crate::integrator::passes::mean_and_variance;
+use crate::integrator::passes::{PriorSamples, mean_and_variance};
 use crate::integrator::{Integrator, RenderContext, Scratch};
 use crate::sampler::SampleStream;
 use crate::scene::{LightSampling, Scene};
@@ -30,6 +30,9 @@ pub struct RenderSettings {
     pub progress: bool,
     /// How next event estimation picks points on emitters (every integrator).
     pub light_sampling: LightSampling,
+    /// Render only final samples `a..b` of an `spp`-sample render (a part for
+    /// [`Partial::merge`]); needs `spp` and no time budget.
+    pub samples: Option<(u32, u32)>,
 }
 
 impl Default for RenderSettings {
@@ -42,6 +45,7 @@ impl Default for RenderSettings {
             tile_size: 32,
             progress: false,
             light_sampling: LightSampling::default(),
+            samples: None,
         }
     }
 }
@@ -64,6 +68,8 @@ pub struct RenderStats {
     /// Samples per pixel the pre-pass took and the image includes (training samples of a
     /// learning integrator), beyond `spp`.
     pub prior_spp: u32,
+    /// A render of a sample range (`RenderSettings::samples`): its exact sums, to merge.
+    pub partial: Option<std::sync::Arc<Partial>>,
 }
 
 impl RenderStats {
@@ -83,8 +89,8 @@ impl RenderStats {
 struct Tile<S> {
     origin: UVec2,
     size: UVec2,
-    sum: Vec<[f64; 3]>,
-    sum_sq: Vec<[f64; 3]>,
+    sum: Vec<[i128; 3]>,
+    sum_sq: Vec<[i128; 3]>,
     state: Vec<S>,
     scratch: Scratch,
 }
@@ -126,9 +132,9 @@ impl<S: Send + Sync> Tile<S> {
                         Vec3A::ZERO
                     };
                     for c in 0..3 {
-                        let x = v[c] as f64;
-                        sum[c] += x;
-                        sum_sq[c] += x * x;
+                        let x = f64::from(v[c]);
+                        sum[c] = sum[c].saturating_add(to_fixed(x));
+                        sum_sq[c] = sum_sq[c].saturating_add(to_fixed(x * x));
                     }
                 }
                 self.sum[i] = sum;
@@ -211,8 +217,8 @@ fn render_in_pool<A: Accel, I: Integrator>(
             tiles.push(Tile {
                 origin: UVec2::new(tx, ty),
                 size,
-                sum: vec![[0.0; 3]; n],
-                sum_sq: vec![[0.0; 3]; n],
+                sum: vec![[0; 3]; n],
+                sum_sq: vec![[0; 3]; n],
                 state: Vec::new(),
                 scratch: Scratch::default(),
             });
@@ -227,6 +233,17 @@ fn render_in_pool<A: Accel, I: Integrator>(
     if settings.spp.is_some_and(|n| n.checked_add(offset).is_none()) {
         return Err(Error::InvalidOption(format!("spp must be at most {} here", u32::MAX - offset)));
     }
+    let (first, last) = match settings.samples {
+        None => (0, settings.spp),
+        Some((a, b)) => {
+            if settings.time_limit.is_some() || settings.spp.is_none_or(|n| !(a < b && b <= n)) {
+                return Err(Error::InvalidOption(format!(
+                    "samples {a}..{b}: a part of an spp-sample render needs 0 <= a < b <= spp and no time budget"
+                )));
+            }
+            (a, Some(b))
+        }
+    };
     let bar = progress_bar(settings);
     tiles.par_iter_mut().for_each(|tile| {
         let mut scratch = Scratch::default();
@@ -235,13 +252,13 @@ fn render_in_pool<A: Accel, I: Integrator>(
     });
     // Whole passes. A pass is one sample per pixel under a time budget (so the budget is
     // overshot by at most one pass) and a few samples otherwise (fewer, larger tasks).
-    let mut done = 0u32;
+    let mut done = first;
     loop {
         let elapsed = start.elapsed().as_secs_f64();
-        if settings.spp.is_some_and(|n| done >= n) || (done > 0 && settings.time_limit.is_some_and(|t| elapsed >= t)) {
+        if last.is_some_and(|n| done >= n) || (done > 0 && settings.time_limit.is_some_and(|t| elapsed >= t)) {
             break;
         }
-        let remaining = settings.spp.map_or(u32::MAX, |n| n - done);
+        let remaining = last.map_or(u32::MAX, |n| n - done);
         let pass = if settings.time_limit.is_some() { 1 } else { remaining.min(4) };
         if done.checked_add(offset + pass).is_none() {
             break;
@@ -251,7 +268,7 @@ fn render_in_pool<A: Accel, I: Integrator>(
             .for_each(|tile| tile.run_pass(&ctx, integrator, settings.seed, width, offset + done, pass));
         done += pass;
         match (settings.spp, settings.time_limit) {
-            (Some(_), None) => bar.set_position(done as u64),
+            (Some(_), None) => bar.set_position(u64::from(done - first)),
             (_, Some(t)) => bar.set_position(((start.elapsed().as_secs_f64() / t) * 1000.0).min(1000.0) as u64),
             _ => {}
         }
@@ -259,48 +276,47 @@ fn render_in_pool<A: Accel, I: Integrator>(
     let seconds = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
 
-    let n = done as f64;
     let (mut rays, mut non_finite) = (0, 0);
     for tile in &tiles {
         rays += tile.scratch.rays;
         non_finite += tile.scratch.non_finite;
     }
-    let (pixels, variance) = match prior {
-        // Samples from before the passes (training) come in by inverse-variance weights, over
-        // the whole image's sums.
-        Some(prior) => {
-            let mut sum = vec![[0.0f64; 3]; (width * height) as usize];
-            let mut sum_sq = vec![[0.0f64; 3]; sum.len()];
-            for tile in &tiles {
-                for (i, p) in tile.pixels() {
-                    let j = (p.y * width + p.x) as usize;
-                    sum[j] = tile.sum[i];
-                    sum_sq[j] = tile.sum_sq[i];
-                }
+    let spp = done - first;
+    let (pixels, variance, partial) = if prior.is_some() || settings.samples.is_some() {
+        // The whole image's exact sums, row-major: training passes are combined over the
+        // whole image, and a part keeps its sums.
+        let mut sums = PixelSums {
+            width,
+            height,
+            spp,
+            sum: vec![[0; 3]; (width * height) as usize],
+            sum_sq: vec![[0; 3]; (width * height) as usize],
+        };
+        for tile in tiles.drain(..) {
+            for (i, p) in tile.pixels() {
+                let j = (p.y * width + p.x) as usize;
+                sums.sum[j] = tile.sum[i];
+                sums.sum_sq[j] = tile.sum_sq[i];
             }
-            drop(tiles);
-            prior.combine(done, &sum, &sum_sq)
         }
-        None => {
-            let mut pixels = vec![[0.0f32; 3]; (width * height) as usize];
-            let mut variance = vec![[0.0f32; 3]; pixels.len()];
-            for tile in &tiles {
-                for (i, p) in tile.pixels() {
-                    let j = (p.y * width + p.x) as usize;
-                    for c in 0..3 {
-                        let (mean, var) = if n > 1.0 {
-                            mean_and_variance(tile.sum[i][c], tile.sum_sq[i][c], n)
-                        } else {
-                            (tile.sum[i][c] / n, 0.0)
-                        };
-                        pixels[j][c] = mean as f32;
-                        variance[j][c] = var as f32;
-                    }
-                }
+        let (pixels, variance) = sums.finish(prior);
+        let partial = settings.samples.map(|_| {
+            std::sync::Arc::new(Partial { first, sums, prior: prior.cloned(), total_spp: settings.spp.unwrap_or(0) })
+        });
+        (pixels, variance, partial)
+    } else {
+        // Straight from the tiles (no second copy of the sums).
+        let mut pixels = vec![[0.0f32; 3]; (width * height) as usize];
+        let mut variance = vec![[0.0f32; 3]; pixels.len()];
+        for tile in tiles.drain(..) {
+            for (i, p) in tile.pixels() {
+                let j = (p.y * width + p.x) as usize;
+                (pixels[j], variance[j]) = finish_pixel(&tile.sum[i], &tile.sum_sq[i], spp);
             }
-            (pixels, variance)
         }
+        (pixels, variance, None)
     };
+    let done = done - first;
     let stats = RenderStats {
         spp: done,
         seconds,
@@ -311,8 +327,150 @@ fn render_in_pool<A: Accel, I: Integrator>(
         prepass,
         non_finite,
         prior_spp,
+        partial,
     };
     Ok((Image { width, height, pixels, variance: Some(variance), spp: done + prior_spp }, stats))
+}
+
+/// Fixed-point scale of the per-pixel sums: 2^40.
+const FIXED_SCALE: f64 = (1u64 << 40) as f64;
+
+/// A sample (or its square) in fixed point, rounded to the nearest 2^-40. Sums of these are
+/// exact integers, so the sums of any split of a pixel's samples add up to the same bits as
+/// one render's: merged parts give bit-identical pixels. (The rounding moves a sample by at
+/// most 4.5e-13, far below an f32 sample's own precision above 1e-5.)
+#[inline]
+fn to_fixed(x: f64) -> i128 {
+    let y = x * FIXED_SCALE;
+    if y.abs() < 9.2e18 {
+        // Round half away from zero, by the fast 64-bit conversion.
+        (y + 0.5f64.copysign(y)) as i64 as i128
+    } else {
+        // Saturates beyond i128 (never for a finite f32 sample or its square).
+        y.round() as i128
+    }
+}
+
+#[inline]
+fn from_fixed(v: i128) -> f64 {
+    v as f64 / FIXED_SCALE
+}
+
+/// Per-pixel exact sums of samples and of their squares (fixed point), row-major.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PixelSums {
+    pub width: u32,
+    pub height: u32,
+    /// Samples per pixel summed.
+    pub spp: u32,
+    pub sum: Vec<[i128; 3]>,
+    pub sum_sq: Vec<[i128; 3]>,
+}
+
+impl PixelSums {
+    /// The image's pixels and per-sample variances: the means, or with a learning integrator's
+    /// earlier passes, their combination with these sums.
+    #[must_use]
+    pub fn finish(&self, prior: Option<&PriorSamples>) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+        let to_f64 = |v: &[[i128; 3]]| -> Vec<[f64; 3]> { v.iter().map(|p| p.map(from_fixed)).collect() };
+        if let Some(prior) = prior {
+            // Samples from before the passes (training) come in by inverse-variance weights.
+            return prior.combine(self.spp, &to_f64(&self.sum), &to_f64(&self.sum_sq));
+        }
+        self.sum.iter().zip(&self.sum_sq).map(|(s, q)| finish_pixel(s, q, self.spp)).unzip()
+    }
+}
+
+/// A pixel's mean and per-sample variance from its exact sums of `spp` samples.
+#[inline]
+fn finish_pixel(s: &[i128; 3], q: &[i128; 3], spp: u32) -> ([f32; 3], [f32; 3]) {
+    let n = f64::from(spp);
+    let (mut mean, mut var) = ([0.0f32; 3], [0.0f32; 3]);
+    for c in 0..3 {
+        let (m, v) = match spp {
+            0 => (0.0, 0.0),
+            1 => (from_fixed(s[c]), 0.0),
+            _ => mean_and_variance(from_fixed(s[c]), from_fixed(q[c]), n),
+        };
+        (mean[c], var[c]) = (m as f32, v as f32);
+    }
+    (mean, var)
+}
+
+/// A render of final samples `first..first + sums.spp` of a `total_spp`-sample render, with
+/// what the pre-pass put into the image (each part recomputes the pre-pass, deterministically,
+/// so every part holds the same).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Partial {
+    pub first: u32,
+    pub total_spp: u32,
+    pub sums: PixelSums,
+    pub prior: Option<PriorSamples>,
+}
+
+impl Partial {
+    /// Adds parts that together cover samples `0..total_spp` once each (in any order) into one
+    /// whose image is bit-identical to a single render's.
+    pub fn merge(mut parts: Vec<Partial>) -> Result<Partial> {
+        parts.sort_by_key(|p| p.first);
+        let Some(head) = parts.first() else {
+            return Err(Error::InvalidOption("no parts to merge".into()));
+        };
+        let (width, height, total) = (head.sums.width, head.sums.height, head.total_spp);
+        let mut next = 0u32;
+        for p in &parts {
+            if (p.sums.width, p.sums.height, p.total_spp) != (width, height, total) {
+                return Err(Error::InvalidOption(format!(
+                    "parts differ: {}x{} of {} spp against {}x{} of {} spp",
+                    p.sums.width, p.sums.height, p.total_spp, width, height, total
+                )));
+            }
+            if p.prior != head.prior {
+                return Err(Error::InvalidOption("parts differ in their pre-pass samples".into()));
+            }
+            if p.first != next {
+                return Err(Error::InvalidOption(if p.first < next {
+                    format!("samples {}.. are in two parts", p.first)
+                } else {
+                    format!("samples {next}..{} are in no part", p.first)
+                }));
+            }
+            next = p.first + p.sums.spp;
+        }
+        if next != total {
+            return Err(Error::InvalidOption(format!("samples {next}..{total} are in no part")));
+        }
+        let mut merged = parts.swap_remove(0);
+        for p in &parts {
+            for (acc, v) in merged.sums.sum.iter_mut().zip(&p.sums.sum) {
+                for c in 0..3 {
+                    acc[c] = acc[c].saturating_add(v[c]);
+                }
+            }
+            for (acc, v) in merged.sums.sum_sq.iter_mut().zip(&p.sums.sum_sq) {
+                for c in 0..3 {
+                    acc[c] = acc[c].saturating_add(v[c]);
+                }
+            }
+        }
+        merged.first = 0;
+        merged.sums.spp = total;
+        Ok(merged)
+    }
+
+    /// The image of these samples (and the pre-pass's).
+    #[must_use]
+    pub fn image(&self) -> Image {
+        let (pixels, variance) = self.sums.finish(self.prior.as_ref());
+        let prior_spp = self.prior.as_ref().map_or(0, |p| p.spp);
+        Image {
+            width: self.sums.width,
+            height: self.sums.height,
+            pixels,
+            variance: Some(variance),
+            spp: self.sums.spp + prior_spp,
+        }
+    }
 }
 
 fn progress_bar(settings: &RenderSettings) -> ProgressBar {

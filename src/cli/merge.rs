@@ -1,0 +1,110 @@
+//! `zvidpt merge`: partial renders of sample ranges into one image, bit-identical to a single
+//! render of all the samples.
+use super::*;
+use crate::render::Partial;
+
+#[derive(Debug, Args)]
+pub struct MergeArgs {
+    /// Partial renders (`zvidpt render --samples A..B`) covering 0..spp once each.
+    #[arg(required = true)]
+    pub parts: Vec<PathBuf>,
+    /// Output EXR.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Output PNG. Default: the EXR's path with a .png extension.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    /// Do not write a PNG.
+    #[arg(long, conflicts_with = "png")]
+    pub no_png: bool,
+    /// PNG exposure in stops.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub exposure: f32,
+}
+
+/// Metadata that differs between parts of one render (timings, machine, range).
+const PER_PART: [&str; 9] =
+    ["seconds", "prepass_seconds", "prepass", "rays", "threads", "samples", "version", "job", "final_spp"];
+
+pub fn run_merge(args: &MergeArgs) -> Result<()> {
+    let png = (!args.no_png).then(|| args.png.clone().unwrap_or_else(|| args.output.with_extension("png")));
+    if let Some(p) = &png
+        && args.png.is_none()
+    {
+        if film::same_file(p, &args.output) {
+            return Err(Error::InvalidOption(format!(
+                "-o {} names the EXR, and the PNG beside it would be the same file: use -o NAME.exr, --png PATH or --no-png",
+                args.output.display()
+            )));
+        }
+        check_derived_png(p)?;
+    }
+    let mut outputs = vec![("EXR", args.output.as_path())];
+    if let Some(p) = &png {
+        outputs.push(("PNG", p.as_path()));
+    }
+    let inputs: Vec<(&str, &Path)> = args.parts.iter().map(|p| ("part", p.as_path())).collect();
+    film::check_outputs(&outputs, &inputs)?;
+    let mut parts = Vec::with_capacity(args.parts.len());
+    let mut head: Option<(PathBuf, Metadata)> = None;
+    let (mut seconds, mut rays) = (0.0f64, 0u64);
+    for path in &args.parts {
+        let (part, meta) = film::read_partial(path)?;
+        seconds += meta.get("seconds").and_then(|s| s.parse::<f64>().ok()).unwrap_or(0.0);
+        rays += meta.get("rays").and_then(|s| s.parse::<u64>().ok()).unwrap_or(0);
+        match &head {
+            None => head = Some((path.clone(), meta)),
+            Some((first, m)) => {
+                // Same scene, integrator, flags and seed: everything but the per-part facts.
+                let keep = |m: &Metadata| -> Vec<(String, String)> {
+                    m.entries.iter().filter(|(k, _)| !PER_PART.contains(&k.as_str())).cloned().collect()
+                };
+                let (a, b) = (keep(m), keep(&meta));
+                if a != b {
+                    let differ = a
+                        .iter()
+                        .find(|e| !b.contains(e))
+                        .or_else(|| b.iter().find(|e| !a.contains(e)))
+                        .map_or_else(String::new, |(k, _)| format!(" ({k})"));
+                    return Err(Error::InvalidOption(format!(
+                        "{} and {} are parts of different renders{differ}",
+                        first.display(),
+                        path.display()
+                    )));
+                }
+            }
+        }
+        parts.push(part);
+    }
+    let (_, head_meta) = head.ok_or_else(|| Error::InvalidOption("no parts".into()))?;
+    let count = parts.len();
+    let merged = Partial::merge(parts)?;
+    let image = merged.image();
+    let mut meta = Metadata::default();
+    for (k, v) in &head_meta.entries {
+        if !PER_PART.contains(&k.as_str()) && k != "spp_total" {
+            meta.push(k, v);
+        }
+    }
+    if merged.prior.is_some() {
+        meta.push("final_spp", merged.total_spp);
+    }
+    meta.push("merged_parts", count);
+    meta.push("seconds", format!("{seconds:.3}"));
+    meta.push("rays", rays);
+    meta.push("version", crate::VERSION);
+    let mut staged = vec![film::stage_exr(&args.output, &image, &meta)?];
+    if let Some(p) = &png {
+        staged.push(film::stage_png(p, &image, args.exposure)?);
+    }
+    film::commit(staged)?;
+    out!(
+        "merged {count} parts, {}x{}, {} spp -> {}{}",
+        image.width,
+        image.height,
+        merged.total_spp,
+        args.output.display(),
+        png.as_ref().map_or(String::new(), |p| format!(", {}", p.display()))
+    );
+    Ok(())
+}

@@ -1,0 +1,179 @@
+//! Partial renders (`zvidpt render --samples A..B`): a sample range's exact per-pixel sums,
+//! the pre-pass samples in the image, and the render's metadata, for `zvidpt merge`.
+//!
+//! Layout (little-endian): the magic `ZVIDPT-PARTIAL1\n`; the metadata as a `u32` byte count
+//! and `key=value` lines; `width`, `height`, `first`, `spp`, `total_spp` as `u32`; per pixel
+//! the sums of R, G, B and of their squares as `i128` (fixed point, 2^-40); a byte saying
+//! whether pre-pass samples follow, and if so their encoding.
+use super::{MAX_PIXELS, Metadata};
+use crate::integrator::passes::PriorSamples;
+use crate::render::{Partial, PixelSums};
+use crate::{Error, Result};
+use std::io::Write;
+use std::path::Path;
+
+const MAGIC: &[u8; 16] = b"ZVIDPT-PARTIAL1\n";
+/// Largest metadata block read.
+const MAX_META_BYTES: usize = 1 << 20;
+
+fn bad(path: &Path, what: &str) -> Error {
+    Error::Image { path: path.to_path_buf(), message: format!("not a zvidpt partial render ({what})") }
+}
+
+/// Stages `part` with `meta` at `path` (commit with [`super::commit`]).
+pub fn stage_partial(path: &Path, part: &Partial, meta: &Metadata) -> Result<super::Staged> {
+    let mut text = String::new();
+    for (k, v) in &meta.entries {
+        // Keys and values are ours; a newline or '=' in a key would break the layout.
+        text.push_str(&k.replace(['\n', '='], "_"));
+        text.push('=');
+        text.push_str(&v.replace('\n', " "));
+        text.push('\n');
+    }
+    let s = &part.sums;
+    let mut bytes = Vec::with_capacity(64 + text.len() + s.sum.len() * 96);
+    bytes.extend_from_slice(MAGIC);
+    bytes.extend_from_slice(&(text.len() as u32).to_le_bytes());
+    bytes.extend_from_slice(text.as_bytes());
+    for v in [s.width, s.height, part.first, s.spp, part.total_spp] {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    for (sum, sq) in s.sum.iter().zip(&s.sum_sq) {
+        for v in sum.iter().chain(sq) {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    match &part.prior {
+        Some(p) => {
+            bytes.push(1);
+            p.encode(&mut bytes);
+        }
+        None => bytes.push(0),
+    }
+    super::stage(path, |w| w.write_all(&bytes).map_err(|e| Error::io(path, e)))
+}
+
+/// Reads a partial render written by [`stage_partial`].
+pub fn read_partial(path: &Path) -> Result<(Partial, Metadata)> {
+    let meta = std::fs::symlink_metadata(path).map_err(|e| Error::io(path, e))?;
+    if !std::fs::metadata(path).map_err(|e| Error::io(path, e))?.is_file() {
+        return Err(bad(path, "not a regular file"));
+    }
+    // Header, sums and pre-pass samples of the largest image, with room to spare.
+    let limit = 1024 + MAX_META_BYTES as u64 + MAX_PIXELS * (96 + 48 + 1);
+    if meta.len() > limit {
+        return Err(bad(path, "too large"));
+    }
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    parse_partial(&bytes, path)
+}
+
+/// A partial render from its bytes (`path` names it in errors).
+pub fn parse_partial(bytes: &[u8], path: &Path) -> Result<(Partial, Metadata)> {
+    let mut b = bytes;
+    let Some((magic, rest)) = b.split_first_chunk::<16>() else { return Err(bad(path, "too short")) };
+    if magic != MAGIC {
+        return Err(bad(path, "wrong magic"));
+    }
+    b = rest;
+    let u32_at = |b: &mut &[u8]| -> Result<u32> {
+        let (head, rest) = b.split_first_chunk::<4>().ok_or_else(|| bad(path, "truncated"))?;
+        *b = rest;
+        Ok(u32::from_le_bytes(*head))
+    };
+    let meta_len = u32_at(&mut b)? as usize;
+    if meta_len > MAX_META_BYTES || meta_len > b.len() {
+        return Err(bad(path, "metadata length"));
+    }
+    let text = std::str::from_utf8(&b[..meta_len]).map_err(|_| bad(path, "metadata is not UTF-8"))?;
+    let mut meta = Metadata::default();
+    for line in text.lines() {
+        let (k, v) = line.split_once('=').ok_or_else(|| bad(path, "metadata line"))?;
+        meta.push(k, v);
+    }
+    b = &b[meta_len..];
+    let [width, height, first, spp, total_spp] =
+        [u32_at(&mut b)?, u32_at(&mut b)?, u32_at(&mut b)?, u32_at(&mut b)?, u32_at(&mut b)?];
+    let pixels = u64::from(width) * u64::from(height);
+    if width == 0 || height == 0 || pixels > MAX_PIXELS {
+        return Err(bad(path, "image size"));
+    }
+    if spp == 0 || first.checked_add(spp).is_none_or(|end| end > total_spp) {
+        return Err(bad(path, "sample range"));
+    }
+    let pixels = pixels as usize;
+    if (b.len() as u64) < pixels as u64 * 96 + 1 {
+        return Err(bad(path, "truncated"));
+    }
+    let mut sum = Vec::with_capacity(pixels);
+    let mut sum_sq = Vec::with_capacity(pixels);
+    for chunk in b[..pixels * 96].chunks_exact(96) {
+        let v: [i128; 6] = std::array::from_fn(|i| {
+            let mut x = [0u8; 16];
+            x.copy_from_slice(&chunk[16 * i..16 * i + 16]);
+            i128::from_le_bytes(x)
+        });
+        sum.push([v[0], v[1], v[2]]);
+        sum_sq.push([v[3], v[4], v[5]]);
+    }
+    b = &b[pixels * 96..];
+    let prior = match b[0] {
+        0 => None,
+        1 => {
+            let mut rest = &b[1..];
+            let p = PriorSamples::decode(&mut rest, pixels).ok_or_else(|| bad(path, "pre-pass samples"))?;
+            b = rest;
+            Some(p)
+        }
+        _ => return Err(bad(path, "pre-pass flag")),
+    };
+    if prior.is_none() {
+        b = &b[1..];
+    }
+    if !b.is_empty() {
+        return Err(bad(path, "trailing bytes"));
+    }
+    let sums = PixelSums { width, height, spp, sum, sum_sq };
+    Ok((Partial { first, total_spp, sums, prior }, meta))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn part(first: u32, spp: u32) -> Partial {
+        let sums = PixelSums {
+            width: 3,
+            height: 2,
+            spp,
+            sum: (0..6).map(|i| [i, -i, i128::MAX / 3]).collect(),
+            sum_sq: (0..6).map(|i| [i * i, 7, 1 << 100]).collect(),
+        };
+        Partial { first, total_spp: 10, sums, prior: None }
+    }
+
+    #[test]
+    fn round_trip_and_malformed_input() {
+        let dir = std::env::temp_dir().join(format!("zvidpt-partial-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("a.part");
+        let mut meta = Metadata::default();
+        meta.push("scene", "x=y\nz");
+        let p = part(2, 5);
+        super::super::commit(vec![stage_partial(&path, &p, &meta).unwrap()]).unwrap();
+        let (back, m) = read_partial(&path).unwrap();
+        assert_eq!(back, p);
+        assert_eq!(m.get("scene"), Some("x=y z"));
+        // Every truncation and a flipped magic fail with a message, never a panic.
+        let bytes = std::fs::read(&path).unwrap();
+        for n in 0..bytes.len() {
+            assert!(parse_partial(&bytes[..n], &path).is_err(), "{n} bytes");
+        }
+        let mut flipped = bytes.clone();
+        flipped[3] ^= 1;
+        assert!(parse_partial(&flipped, &path).unwrap_err().to_string().contains("not a zvidpt partial"));
+        let mut longer = bytes;
+        longer.push(0);
+        assert!(parse_partial(&longer, &path).is_err());
+    }
+}
