@@ -6,6 +6,7 @@ use crate::integrator::{
     Estimator, GuideSettings, Jensen, LearnedSettings, LearnedZvidpt, MAX_SUBPIXELS, PathTracer, Roulette, Zvidpt,
 };
 use crate::photon::{GridShape, GuidePhotons, MAX_GUIDE_CELLS};
+use crate::render::aov::{Aovs, first_hit_aovs};
 use crate::render::{RenderSettings, RenderStats, render};
 use crate::scene::{LightSampling, Scene};
 use crate::{Error, Result};
@@ -413,10 +414,12 @@ struct RenderJob<'a> {
     integrator: IntegratorKind,
     photon: &'a PhotonArgs,
     settings: &'a RenderSettings,
+    /// Trace first-hit AOVs after the render, with the same backend.
+    aovs: bool,
 }
 
 impl WithAccel for RenderJob<'_> {
-    type Output = Result<(Image, RenderStats, &'static str)>;
+    type Output = Result<(Image, RenderStats, &'static str, Option<Aovs>)>;
     fn run<A: Accel>(self, accel: &A) -> Self::Output {
         let a = self.photon;
         let guide = a.settings();
@@ -437,7 +440,8 @@ impl WithAccel for RenderJob<'_> {
             IntegratorKind::ZvidptTerminal => render(scene, accel, &mut zvidpt(Estimator::Terminal), s)?,
             IntegratorKind::ZvidptCollision => render(scene, accel, &mut zvidpt(Estimator::Collision), s)?,
         };
-        Ok((image, stats, accel.name()))
+        let aovs = self.aovs.then(|| first_hit_aovs(scene, accel, s.seed));
+        Ok((image, stats, accel.name(), aovs))
     }
 }
 
@@ -450,7 +454,19 @@ pub fn render_scene(
     backend: BackendKind,
     settings: &RenderSettings,
 ) -> Result<(Image, RenderStats, &'static str)> {
-    with_backend(backend, scene, RenderJob { scene, integrator, photon, settings })?
+    render_scene_with_aovs(scene, integrator, photon, backend, settings, false).map(|(i, s, b, _)| (i, s, b))
+}
+
+/// [`render_scene`], and the first-hit AOVs when `aovs`.
+pub fn render_scene_with_aovs(
+    scene: &Scene,
+    integrator: IntegratorKind,
+    photon: &PhotonArgs,
+    backend: BackendKind,
+    settings: &RenderSettings,
+    aovs: bool,
+) -> Result<(Image, RenderStats, &'static str, Option<Aovs>)> {
+    with_backend(backend, scene, RenderJob { scene, integrator, photon, settings, aovs })?
 }
 
 /// Checks a command's options alone (no file is touched): what `run` checks first.

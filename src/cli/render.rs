@@ -43,6 +43,11 @@ pub struct RenderArgs {
     /// Tile side in pixels (does not change the image).
     #[arg(long, default_value_t = 32)]
     pub tile_size: u32,
+    /// Extra EXR layers, comma-separated: albedo (albedo.R/G/B), normal (normal.X/Y/Z, world
+    /// space, facing the camera), depth (Z, distance to the first hit), spp (per-pixel sample
+    /// count), variance (variance.R/G/B, always written). From 16 jittered camera rays per pixel.
+    #[arg(long, value_enum, value_delimiter = ',')]
+    pub aov: Vec<Aov>,
     /// No progress bar.
     #[arg(short, long)]
     pub quiet: bool,
@@ -52,7 +57,22 @@ pub struct RenderArgs {
     pub job_key: Option<String>,
 }
 
+/// An auxiliary layer of the EXR.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Aov {
+    Albedo,
+    Normal,
+    Depth,
+    Variance,
+    Spp,
+}
+
 pub(super) fn check_render_options(args: &RenderArgs) -> Result<()> {
+    if args.samples.is_some() && args.aov.iter().any(|a| *a != Aov::Variance) {
+        return Err(Error::InvalidOption(
+            "--aov layers are written by `zvidpt merge`'s image, not by a --samples part".into(),
+        ));
+    }
     if args.spp == Some(0) {
         return Err(Error::InvalidOption("--spp must be at least 1".into()));
     }
@@ -133,7 +153,29 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         samples: args.samples,
     };
     let integrator = args.integrator;
-    let (image, stats, backend) = render_scene(&scene, integrator, &args.photon, args.machine.backend, &settings)?;
+    let want = |a: Aov| args.aov.contains(&a);
+    let first_hit = want(Aov::Albedo) || want(Aov::Normal) || want(Aov::Depth);
+    let (image, stats, backend, aovs) =
+        render_scene_with_aovs(&scene, integrator, &args.photon, args.machine.backend, &settings, first_hit)?;
+    // Layers named as tev and Open Image Denoise's tools expect (albedo.R, normal.X, Z).
+    let mut layers: Vec<(String, Vec<f32>)> = Vec::new();
+    if let Some(a) = &aovs {
+        for (kind, prefix, names, values) in
+            [(Aov::Albedo, "albedo", ["R", "G", "B"], &a.albedo), (Aov::Normal, "normal", ["X", "Y", "Z"], &a.normal)]
+        {
+            if want(kind) {
+                for (c, name) in names.iter().enumerate() {
+                    layers.push((format!("{prefix}.{name}"), values.iter().map(|v| v[c]).collect()));
+                }
+            }
+        }
+        if want(Aov::Depth) {
+            layers.push(("Z".into(), a.depth.clone()));
+        }
+    }
+    if want(Aov::Spp) {
+        layers.push(("spp".into(), vec![image.spp as f32; image.pixels.len()]));
+    }
 
     let mut meta = Metadata::default();
     meta.push("scene", scene.path.display());
@@ -165,7 +207,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     // Both images or neither.
     let mut staged = vec![match &stats.partial {
         Some(part) => film::stage_partial(&args.output, part, &meta)?,
-        None => film::stage_exr(&args.output, &image, &meta)?,
+        None => film::stage_exr_with(&args.output, &image, &meta, layers)?,
     }];
     if let Some(p) = &png {
         staged.push(film::stage_png(p, &image, args.exposure)?);

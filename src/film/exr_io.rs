@@ -17,8 +17,23 @@ pub fn write_exr(path: &Path, image: &Image, meta: &Metadata) -> Result<()> {
 
 /// [`write_exr`] to a temporary file, for [`super::commit`] with other outputs.
 pub fn stage_exr(path: &Path, image: &Image, meta: &Metadata) -> Result<Staged> {
+    stage_exr_with(path, image, meta, Vec::new())
+}
+
+/// [`stage_exr`] with extra channels (name, one value per pixel): AOV layers such as
+/// `albedo.R` or `Z`.
+pub fn stage_exr_with(path: &Path, image: &Image, meta: &Metadata, extra: Vec<(String, Vec<f32>)>) -> Result<Staged> {
     let size = (image.width as usize, image.height as usize);
     let mut channels: Vec<AnyChannel<FlatSamples>> = Vec::new();
+    for (name, values) in extra {
+        if values.len() != image.pixels.len() {
+            return Err(Error::Image {
+                path: path.to_path_buf(),
+                message: format!("channel {name} has the wrong size"),
+            });
+        }
+        channels.push(AnyChannel::new(name.as_str(), FlatSamples::F32(values)));
+    }
     for c in 0..3 {
         channels.push(AnyChannel::new(RGB[c], FlatSamples::F32(image.pixels.iter().map(|p| p[c]).collect())));
         if let Some(v) = &image.variance {

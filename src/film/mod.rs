@@ -10,7 +10,7 @@ pub use atomic::{
     Staged, check_destination, check_outputs, check_writable, commit, remove_pending_files, same_file, stage,
     write_atomically,
 };
-pub use exr_io::{read_exr, read_exr_from, stage_exr, write_exr};
+pub use exr_io::{read_exr, read_exr_from, stage_exr, stage_exr_with, write_exr};
 pub use metrics::{Metrics, error_map_png, metrics, metrics_of_rows};
 pub use partial::{parse_partial, read_partial, stage_partial};
 pub use png_out::write_rgb8 as write_rgb8_png;

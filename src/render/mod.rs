@@ -1,6 +1,8 @@
 //! The tiled scheduler: rayon over image tiles, whole passes of samples, a sample or time
 //! budget, and a progress bar. Each tile owns its accumulators and per-pixel state, so the
 //! sample loop takes no lock and allocates nothing.
+pub mod aov;
+
 use crate::accel::Accel;
 use crate::film::Image;
 use crate::geometry::{UVec2, Vec3A};

@@ -20,6 +20,8 @@ pub enum Domain {
     Camera = 0,
     PixelSetup = 1,
     Photon = 2,
+    /// First-hit AOV rays.
+    Aov = 3,
 }
 
 /// A 64-bit finaliser with full avalanche (Pelle Evensen's rrmxmx).
