@@ -17,9 +17,9 @@ pub use png_out::write_rgb8 as write_rgb8_png;
 pub use png_out::{stage_png, to_srgb8, write_png};
 
 /// Most pixels an image may have, rendered or read: 2^26 (e.g. 8192 × 8192). A render peaks
-/// at about 73 bytes per pixel (`path`) and 162 (`zvidpt`, training passes combined), measured
-/// at 2048×2048 (README, "errors and limits"): 4.9 and 10.9 GB at the limit, within this
-/// machine's 24 GiB.
+/// at about 114 bytes per pixel (`path`) and 256 (`zvidpt`, training passes combined; 128-bit
+/// exact sums), measured between 1024×768 and 2048×1536 (README, "errors and limits"): 7.7
+/// and 17 GB at the limit, within this machine's 24 GiB.
 pub const MAX_PIXELS: u64 = 1 << 26;
 
 /// A float RGB image, row-major from the top-left.
