@@ -61,6 +61,13 @@ spp = 2
     assert_eq!(first.status.code(), Some(1), "{log}");
     assert!(log.contains("error: 1 of 5 jobs failed"), "{log}");
     assert!(log.contains("5 jobs: 4 rendered, 0 skipped, 1 failed"), "{log}");
+    // Stderr is a pipe here: progress is JSON lines, one per pass and one per job.
+    let events: Vec<serde_json::Value> =
+        String::from_utf8_lossy(&first.stderr).lines().filter_map(|l| serde_json::from_str(l).ok()).collect();
+    let count = |e: &str| events.iter().filter(|v| v["event"] == e).count();
+    assert_eq!(count("job"), 5, "{log}");
+    assert!(count("pass") >= 4, "{log}");
+    assert!(events.iter().any(|v| v["event"] == "job" && v["status"] == "failed" && v["error"].is_string()), "{log}");
     for name in ["paper-path-2", "paper-path-4", "paper-zvidpt-2", "paper-zvidpt-4"] {
         assert!(dir.join(format!("out/{name}.exr")).is_file(), "{name}: {log}");
     }

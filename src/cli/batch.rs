@@ -54,6 +54,8 @@ fn render_args(job: &Job) -> Result<RenderArgs> {
 struct Renders {
     /// Progress bars only when one job runs at a time.
     quiet: bool,
+    /// Machine-readable progress (stderr is not a terminal).
+    json: bool,
 }
 
 impl Runner for Renders {
@@ -78,6 +80,7 @@ impl Runner for Renders {
             args.machine.threads = threads;
         }
         args.quiet |= self.quiet;
+        args.progress_json = self.json;
         // The job file asked for this output: its folder is made if missing.
         if let Some(parent) = args.output.parent().filter(|p| !p.as_os_str().is_empty() && !p.exists()) {
             std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
@@ -101,7 +104,9 @@ impl Runner for Renders {
 pub fn run_batch(args: &BatchArgs) -> Result<()> {
     check_batch_options(args)?;
     let jobs = batch::load(&args.jobs)?;
-    let runner = Renders { quiet: args.parallel > 1 };
+    use std::io::IsTerminal as _;
+    let json_progress = !std::io::stderr().is_terminal();
+    let runner = Renders { quiet: args.parallel > 1, json: json_progress };
     if args.dry_run {
         for job in &jobs {
             runner.check(job).map_err(|e| Error::InvalidOption(format!("{}: {e}", job.origin)))?;
@@ -129,7 +134,21 @@ pub fn run_batch(args: &BatchArgs) -> Result<()> {
             (Status::Failed, Some(e)) => format!("failed: {e}"),
             (s, _) => s.name().to_string(),
         };
-        warn!("[{n}/{total}] {} {}: {what}", r.job.origin, r.job.output.display());
+        if json_progress {
+            let line = serde_json::json!({
+                "event": "job",
+                "index": n,
+                "jobs": total,
+                "job": r.job.origin,
+                "output": r.job.output.display().to_string(),
+                "status": r.status.name(),
+                "seconds": r.outcome.map(|o| o.seconds),
+                "error": r.error,
+            });
+            warn!("{line}");
+        } else {
+            warn!("[{n}/{total}] {} {}: {what}", r.job.origin, r.job.output.display());
+        }
     };
     let options = BatchOptions { parallel: args.parallel, threads: args.threads };
     let reports = batch::run(&jobs, &runner, options, &progress)?;

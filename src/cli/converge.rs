@@ -146,6 +146,7 @@ impl ConvergeArgs {
     fn settings(&self, spp: Option<u32>, time_limit: Option<f64>, seed: u64) -> RenderSettings {
         RenderSettings {
             samples: None,
+            progress_json: false,
             spp,
             time_limit,
             seed,

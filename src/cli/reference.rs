@@ -61,6 +61,7 @@ pub(super) fn run_reference(args: &ReferenceArgs) -> Result<()> {
     film::check_outputs(&[("EXR", &args.output), ("PNG", &png)], &inputs)?;
     let settings = RenderSettings {
         samples: None,
+        progress_json: false,
         spp: Some(args.spp),
         time_limit: None,
         seed: args.seed,

@@ -55,6 +55,9 @@ pub struct RenderArgs {
     /// the batch skips this render.
     #[arg(long, hide = true)]
     pub job_key: Option<String>,
+    /// Set by `zvidpt batch` when its stderr is not a terminal: one JSON line per pass.
+    #[arg(long, hide = true)]
+    pub progress_json: bool,
 }
 
 /// An auxiliary layer of the EXR.
@@ -151,6 +154,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         progress: !args.quiet,
         light_sampling: args.photon.light_sampling,
         samples: args.samples,
+        progress_json: args.progress_json,
     };
     let integrator = args.integrator;
     let want = |a: Aov| args.aov.contains(&a);

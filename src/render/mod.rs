@@ -35,6 +35,8 @@ pub struct RenderSettings {
     /// Render only final samples `a..b` of an `spp`-sample render (a part for
     /// [`Partial::merge`]); needs `spp` and no time budget.
     pub samples: Option<(u32, u32)>,
+    /// Progress as one JSON line per pass on stderr (for batches whose stderr is a file).
+    pub progress_json: bool,
 }
 
 impl Default for RenderSettings {
@@ -48,6 +50,7 @@ impl Default for RenderSettings {
             progress: false,
             light_sampling: LightSampling::default(),
             samples: None,
+            progress_json: false,
         }
     }
 }
@@ -273,6 +276,16 @@ fn render_in_pool<A: Accel, I: Integrator>(
             (Some(_), None) => bar.set_position(u64::from(done - first)),
             (_, Some(t)) => bar.set_position(((start.elapsed().as_secs_f64() / t) * 1000.0).min(1000.0) as u64),
             _ => {}
+        }
+        if settings.progress_json {
+            use std::io::Write as _;
+            let line = serde_json::json!({
+                "event": "pass",
+                "samples_done": done - first,
+                "samples": last.map(|n| n - first),
+                "seconds": start.elapsed().as_secs_f64(),
+            });
+            let _ = writeln!(std::io::stderr().lock(), "{line}");
         }
     }
     let seconds = start.elapsed().as_secs_f64();
