@@ -207,7 +207,7 @@ pub fn parse(text: &str, path: &Path, base: &Path) -> Result<Vec<Job>> {
     Ok(jobs)
 }
 
-/// A string, integer or float as text (for placeholders and flags).
+/// A string, integer or float as text (for output templates and flags).
 fn scalar(value: &toml::Value) -> Option<String> {
     match value {
         toml::Value::String(s) => Some(s.clone()),
@@ -324,19 +324,17 @@ fn expand_matrix(
     if jobs.len() + count > MAX_JOBS {
         return Err(syntax(path, format!("{origin} expands to more than {MAX_JOBS} jobs")));
     }
-    // Placeholders each varying list needs, so that no two jobs share an output.
-    for (key, placeholder, values) in [
+    // The template field each varying list needs, so that no two jobs share an output.
+    for (key, field, values) in [
         ("scenes", "{scene}", &scenes),
         ("integrators", "{integrator}", &integrators),
         (budget_key, if budget_key == "spp" { "{spp}" } else { "{time}" }, &budgets),
         ("seeds", "{seed}", &seeds),
     ] {
-        if values.len() > 1 && !template.contains(placeholder) {
+        if values.len() > 1 && !template.contains(field) {
             return Err(syntax(
                 path,
-                format!(
-                    "{origin}: `output` needs {placeholder}: `{key}` has several values and each job needs its own file"
-                ),
+                format!("{origin}: `output` needs {field}: `{key}` has several values and each job needs its own file"),
             ));
         }
     }

@@ -27,18 +27,7 @@ const PER_PART: [&str; 9] =
     ["seconds", "prepass_seconds", "prepass", "rays", "threads", "samples", "version", "job", "final_spp"];
 
 pub fn run_merge(args: &MergeArgs) -> Result<()> {
-    let png = (!args.no_png).then(|| args.png.clone().unwrap_or_else(|| args.output.with_extension("png")));
-    if let Some(p) = &png
-        && args.png.is_none()
-    {
-        if film::same_file(p, &args.output) {
-            return Err(Error::InvalidOption(format!(
-                "-o {} names the EXR, and the PNG beside it would be the same file: use -o NAME.exr, --png PATH or --no-png",
-                args.output.display()
-            )));
-        }
-        check_derived_png(p)?;
-    }
+    let png = png_destination(&args.output, args.png.as_deref(), args.no_png)?;
     let mut outputs = vec![("EXR", args.output.as_path())];
     if let Some(p) = &png {
         outputs.push(("PNG", p.as_path()));

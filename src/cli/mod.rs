@@ -480,6 +480,27 @@ pub fn validate(cli: &Cli) -> Result<()> {
     }
 }
 
+/// Where the PNG beside the EXR `output` goes: `png` if given, none with `no_png`, else the
+/// EXR's path with a .png extension — checked: that derived path must not be the EXR itself
+/// and may replace only an earlier PNG.
+fn png_destination(output: &Path, png: Option<&Path>, no_png: bool) -> Result<Option<PathBuf>> {
+    if no_png {
+        return Ok(None);
+    }
+    if let Some(p) = png {
+        return Ok(Some(p.to_path_buf()));
+    }
+    let derived = output.with_extension("png");
+    if film::same_file(&derived, output) {
+        return Err(Error::InvalidOption(format!(
+            "-o {} names the EXR, and the PNG beside it would be the same file: use -o NAME.exr, --png PATH or --no-png",
+            output.display()
+        )));
+    }
+    check_derived_png(&derived)?;
+    Ok(Some(derived))
+}
+
 /// The PNG written beside the EXR by default (a path the user did not type) may replace only
 /// an earlier PNG, never another kind of file.
 fn check_derived_png(path: &Path) -> Result<()> {

@@ -118,21 +118,9 @@ pub(super) fn load_scene(args: &RenderArgs) -> Result<Scene> {
 /// Renders as the command line says; returns what it measured.
 pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     check_render_options(args)?;
-    // A partial render is a file of sums: no PNG.
-    let png = (!args.no_png && args.samples.is_none())
-        .then(|| args.png.clone().unwrap_or_else(|| args.output.with_extension("png")));
-    // Fail before rendering if an output cannot be written or would replace what it must not.
-    if let Some(p) = &png
-        && args.png.is_none()
-    {
-        if film::same_file(p, &args.output) {
-            return Err(Error::InvalidOption(format!(
-                "-o {} names the EXR, and the PNG beside it would be the same file: use -o NAME.exr, --png PATH or --no-png",
-                args.output.display()
-            )));
-        }
-        check_derived_png(p)?;
-    }
+    // A partial render is a file of sums: no PNG. Fail before rendering if an output cannot
+    // be written or would replace what it must not.
+    let png = png_destination(&args.output, args.png.as_deref(), args.no_png || args.samples.is_some())?;
     args.machine.backend.check_available()?;
     let scene = load_scene(args)?;
     let mut outputs = vec![("EXR", args.output.as_path())];

@@ -55,8 +55,8 @@ pub fn stage_partial(path: &Path, part: &Partial, meta: &Metadata) -> Result<sup
 
 /// Reads a partial render written by [`stage_partial`].
 pub fn read_partial(path: &Path) -> Result<(Partial, Metadata)> {
-    let meta = std::fs::symlink_metadata(path).map_err(|e| Error::io(path, e))?;
-    if !std::fs::metadata(path).map_err(|e| Error::io(path, e))?.is_file() {
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if !meta.is_file() {
         return Err(bad(path, "not a regular file"));
     }
     // Header, sums and pre-pass samples of the largest image, with room to spare.

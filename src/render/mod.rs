@@ -456,17 +456,14 @@ impl Partial {
             return Err(Error::InvalidOption(format!("samples {next}..{total} are in no part")));
         }
         let mut merged = parts.swap_remove(0);
+        let add = |into: &mut [[i128; 3]], from: &[[i128; 3]]| {
+            for (acc, v) in into.iter_mut().zip(from) {
+                *acc = std::array::from_fn(|c| acc[c].saturating_add(v[c]));
+            }
+        };
         for p in &parts {
-            for (acc, v) in merged.sums.sum.iter_mut().zip(&p.sums.sum) {
-                for c in 0..3 {
-                    acc[c] = acc[c].saturating_add(v[c]);
-                }
-            }
-            for (acc, v) in merged.sums.sum_sq.iter_mut().zip(&p.sums.sum_sq) {
-                for c in 0..3 {
-                    acc[c] = acc[c].saturating_add(v[c]);
-                }
-            }
+            add(&mut merged.sums.sum, &p.sums.sum);
+            add(&mut merged.sums.sum_sq, &p.sums.sum_sq);
         }
         merged.first = 0;
         merged.sums.spp = total;
