@@ -55,6 +55,17 @@ pub enum BackendKind {
 pub const EMBREE_AVAILABLE: bool = cfg!(feature = "embree");
 
 impl BackendKind {
+    /// The backend this choice builds in this build (`auto` resolved).
+    #[must_use]
+    pub fn resolved_name(self) -> &'static str {
+        match self {
+            BackendKind::Bvh => "bvh",
+            BackendKind::Embree => "embree",
+            BackendKind::Auto if EMBREE_AVAILABLE => "embree",
+            BackendKind::Auto => "bvh",
+        }
+    }
+
     /// Fails with a clear message when the backend is not compiled into this build.
     pub fn check_available(self) -> Result<()> {
         if self == BackendKind::Embree && !EMBREE_AVAILABLE {

@@ -403,7 +403,8 @@ pub fn run(
     std::thread::scope(|scope| {
         for _ in 0..parallel {
             scope.spawn(|| {
-                loop {
+                // After SIGINT or SIGTERM no job starts (the running ones keep checkpoints).
+                while crate::render::interrupt::requested().is_none() {
                     let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                     let Some(job) = jobs.get(i) else { break };
                     let r = run_one(job, runner, threads);
@@ -413,6 +414,19 @@ pub fn run(
             });
         }
     });
+    if let Some(signal) = crate::render::interrupt::requested() {
+        let finished = results
+            .iter()
+            .filter(|r| r.lock().is_ok_and(|r| r.as_ref().is_some_and(|r| r.status != Status::Failed)))
+            .count();
+        return Err(Error::Interrupted {
+            signal,
+            message: format!(
+                "interrupted: {finished} of {} jobs done; run the batch again to continue (renders resume from their checkpoints)",
+                jobs.len()
+            ),
+        });
+    }
     let mut reports: Vec<Report> = results
         .into_iter()
         .zip(jobs)

@@ -81,6 +81,8 @@ impl Runner for Renders {
         }
         args.quiet |= self.quiet;
         args.progress_json = self.json;
+        // A rerun of the batch continues an interrupted render.
+        args.resume = !args.no_checkpoint;
         // The job file asked for this output: its folder is made if missing.
         if let Some(parent) = args.output.parent().filter(|p| !p.as_os_str().is_empty() && !p.exists()) {
             std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;

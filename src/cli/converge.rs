@@ -147,6 +147,7 @@ impl ConvergeArgs {
         RenderSettings {
             samples: None,
             progress_json: false,
+            checkpoint: None,
             spp,
             time_limit,
             seed,

@@ -23,8 +23,18 @@ pub struct MergeArgs {
 }
 
 /// Metadata that differs between parts of one render (timings, machine, range).
-const PER_PART: [&str; 9] =
-    ["seconds", "prepass_seconds", "prepass", "rays", "threads", "samples", "version", "job", "final_spp"];
+const PER_PART: [&str; 10] = [
+    "seconds",
+    "prepass_seconds",
+    "prepass",
+    "rays",
+    "threads",
+    "samples",
+    "version",
+    "job",
+    "final_spp",
+    "resumed_at_spp",
+];
 
 pub fn run_merge(args: &MergeArgs) -> Result<()> {
     let png = png_destination(&args.output, args.png.as_deref(), args.no_png)?;
@@ -39,6 +49,12 @@ pub fn run_merge(args: &MergeArgs) -> Result<()> {
     let (mut seconds, mut rays) = (0.0f64, 0u64);
     for path in &args.parts {
         let (part, meta) = film::read_partial(path)?;
+        if meta.get("checkpoint").is_some() {
+            return Err(Error::InvalidOption(format!(
+                "{} is the checkpoint of an unfinished part: finish it with `zvidpt render ... --resume`",
+                path.display()
+            )));
+        }
         seconds += meta.get("seconds").and_then(|s| s.parse::<f64>().ok()).unwrap_or(0.0);
         rays += meta.get("rays").and_then(|s| s.parse::<u64>().ok()).unwrap_or(0);
         match &head {

@@ -62,6 +62,7 @@ pub(super) fn run_reference(args: &ReferenceArgs) -> Result<()> {
     let settings = RenderSettings {
         samples: None,
         progress_json: false,
+        checkpoint: None,
         spp: Some(args.spp),
         time_limit: None,
         seed: args.seed,

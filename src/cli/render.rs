@@ -1,5 +1,6 @@
 //! `zvidpt render`: options, their checks, the render and its outputs.
 use super::*;
+use crate::render::checkpoint::{CheckpointSettings, Resume, is_checkpoint};
 
 #[derive(Debug, Args)]
 pub struct RenderArgs {
@@ -48,6 +49,22 @@ pub struct RenderArgs {
     /// count), variance (variance.R/G/B, always written). From 16 jittered camera rays per pixel.
     #[arg(long, value_enum, value_delimiter = ',')]
     pub aov: Vec<Aov>,
+    /// Checkpoint file: the render's sums so far, rewritten atomically every
+    /// --checkpoint-every seconds and on SIGINT/SIGTERM, removed when the render is done
+    /// [default: the EXR's path + .checkpoint].
+    #[arg(long, value_name = "PATH", conflicts_with = "no_checkpoint")]
+    pub checkpoint: Option<PathBuf>,
+    /// Seconds between checkpoints (0: after every pass).
+    #[arg(long, default_value_t = 60.0, value_name = "SECONDS")]
+    pub checkpoint_every: f64,
+    /// Keep no checkpoint (an interrupted render is lost).
+    #[arg(long)]
+    pub no_checkpoint: bool,
+    /// Continue from the checkpoint of an interrupted run of this same render (same scene,
+    /// options and seed); the pixels come out bit-identical to an uninterrupted render. Without
+    /// a checkpoint, renders from the start.
+    #[arg(long, conflicts_with = "no_checkpoint")]
+    pub resume: bool,
     /// No progress bar.
     #[arg(short, long)]
     pub quiet: bool,
@@ -90,6 +107,12 @@ pub(super) fn check_render_options(args: &RenderArgs) -> Result<()> {
     if args.machine.threads == Some(0) {
         return Err(Error::InvalidOption("--threads must be at least 1".into()));
     }
+    if !(args.checkpoint_every.is_finite() && args.checkpoint_every >= 0.0) {
+        return Err(Error::InvalidOption(format!(
+            "--checkpoint-every must be a number of seconds, 0 or more, got {}",
+            args.checkpoint_every
+        )));
+    }
     if let Some((a, b)) = args.samples {
         let Some(n) = args.spp else {
             return Err(Error::InvalidOption("--samples A..B needs --spp N, the whole render's sample count".into()));
@@ -127,11 +150,30 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     if let Some(p) = &png {
         outputs.push(("PNG", p.as_path()));
     }
+    let checkpoint_path = checkpoint_path(args);
+    if let Some(p) = &checkpoint_path {
+        outputs.push(("checkpoint", p.as_path()));
+    }
     let inputs: Vec<(&str, &Path)> = scene.sources.iter().map(|s| ("scene's file", s.as_path())).collect();
     film::check_outputs(&outputs, &inputs)?;
+    let checkpoint = match &checkpoint_path {
+        Some(path) => Some(checkpoint_settings(args, &scene, path)?),
+        None => None,
+    };
     // Warnings only once every option is known to be valid, so a failed run prints one line.
     for w in &scene.warnings {
         warn!("warning: {w}");
+    }
+    if let Some(c) = &checkpoint {
+        match &c.resume {
+            Some(r) => warn!("resuming {} after {} spp ({:.1} s)", c.path.display(), r.part.sums.spp, r.seconds),
+            None if args.resume => warn!("note: no checkpoint at {}: rendering from the start", c.path.display()),
+            None if c.path.exists() => warn!(
+                "warning: replacing the checkpoint of an interrupted render at {} (--resume continues it)",
+                c.path.display()
+            ),
+            None => {}
+        }
     }
     let settings = RenderSettings {
         spp: args.spp.or(if args.time.is_some() { None } else { Some(64) }),
@@ -143,6 +185,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         light_sampling: args.photon.light_sampling,
         samples: args.samples,
         progress_json: args.progress_json,
+        checkpoint,
     };
     let integrator = args.integrator;
     let want = |a: Aov| args.aov.contains(&a);
@@ -174,7 +217,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     meta.push("integrator", flag_name(integrator));
     meta.push("backend", backend);
     meta.push("seed", args.seed);
-    meta.push("seconds", format!("{:.3}", stats.seconds));
+    meta.push("seconds", format!("{:.3}", stats.total_seconds()));
     meta.push("prepass_seconds", format!("{:.3}", stats.prepass_seconds));
     if let Some(p) = &stats.prepass {
         meta.push("prepass", p);
@@ -192,6 +235,9 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     if let Some(key) = &args.job_key {
         meta.push("job", key);
     }
+    if stats.resumed_spp > 0 {
+        meta.push("resumed_at_spp", stats.resumed_spp);
+    }
     if let Some((a, b)) = args.samples {
         meta.push("samples", format!("{a}..{b}"));
         meta.push("spp_total", args.spp.unwrap_or(0));
@@ -205,6 +251,13 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         staged.push(film::stage_png(p, &image, args.exposure)?);
     }
     film::commit(staged)?;
+    // The image holds every sample now: the checkpoint has served.
+    if let Some(c) = &settings.checkpoint
+        && let Err(e) = std::fs::remove_file(&c.path)
+        && e.kind() != std::io::ErrorKind::NotFound
+    {
+        warn!("warning: the render is written, but its checkpoint {} could not be removed: {e}", c.path.display());
+    }
     if stats.non_finite > 0 {
         warn!("warning: {} samples were NaN or infinite and were dropped", stats.non_finite);
     }
@@ -242,6 +295,51 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         warn!("warning: the images are written, but the summary could not be printed: {e}");
     }
     Ok(stats)
+}
+
+/// Where the checkpoint goes, if one is kept.
+pub(super) fn checkpoint_path(args: &RenderArgs) -> Option<PathBuf> {
+    if args.no_checkpoint {
+        return None;
+    }
+    Some(args.checkpoint.clone().unwrap_or_else(|| {
+        let mut name = args.output.as_os_str().to_owned();
+        name.push(".checkpoint");
+        PathBuf::from(name)
+    }))
+}
+
+/// What makes two renders the same render: everything that changes the pixels (not threads,
+/// tiles or output names). A checkpoint carries it and is continued only by its equal.
+pub(super) fn render_identity(args: &RenderArgs, scene: &Scene) -> Metadata {
+    let mut meta = Metadata::default();
+    meta.push("scene_hash", format!("{:016x}", scene.content_hash()));
+    meta.push("resolution", format!("{}x{}", scene.camera.width, scene.camera.height));
+    meta.push("integrator", flag_name(args.integrator));
+    meta.push("backend", args.machine.backend.resolved_name());
+    meta.push("seed", args.seed);
+    meta.push("spp", args.spp.map_or("-".into(), |n| n.to_string()));
+    meta.push("time", args.time.map_or("-".into(), |t| t.to_string()));
+    meta.push("samples", args.samples.map_or("-".into(), |(a, b)| format!("{a}..{b}")));
+    args.photon.describe(args.integrator, &mut meta);
+    meta.push("version", crate::VERSION);
+    meta
+}
+
+/// The checkpoint of this render: where, how often, and what to continue (`--resume`).
+fn checkpoint_settings(args: &RenderArgs, scene: &Scene, path: &Path) -> Result<CheckpointSettings> {
+    let meta = render_identity(args, scene);
+    let exists = std::fs::symlink_metadata(path).is_ok();
+    // Only a checkpoint may be replaced by one: never a file the user did not ask to write.
+    if exists && !is_checkpoint(path) {
+        return Err(Error::Output {
+            path: path.to_path_buf(),
+            message: "exists and is not a zvidpt checkpoint; not replacing it (choose another --checkpoint, or --no-checkpoint)"
+                .into(),
+        });
+    }
+    let resume = if args.resume && exists { Some(Resume::read(path, &meta)?) } else { None };
+    Ok(CheckpointSettings { path: path.to_path_buf(), interval: args.checkpoint_every, meta, resume })
 }
 
 /// `A..B` (sample indices, B exclusive).

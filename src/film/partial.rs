@@ -22,6 +22,21 @@ fn bad(path: &Path, what: &str) -> Error {
 
 /// Stages `part` with `meta` at `path` (commit with [`super::commit`]).
 pub fn stage_partial(path: &Path, part: &Partial, meta: &Metadata) -> Result<super::Staged> {
+    let s = &part.sums;
+    let header = [s.width, s.height, part.first, s.spp, part.total_spp];
+    stage_sums(path, meta, header, |j| (s.sum[j], s.sum_sq[j]), part.prior.as_ref())
+}
+
+/// Stages a partial render whose pixel `j` (row-major) has the sums `pixel(j)`, without a
+/// copy of the image's sums (a checkpoint taken mid-render). `header` is `[width, height,
+/// first, spp, total_spp]`.
+pub fn stage_sums(
+    path: &Path,
+    meta: &Metadata,
+    header: [u32; 5],
+    pixel: impl Fn(usize) -> ([i128; 3], [i128; 3]),
+    prior: Option<&PriorSamples>,
+) -> Result<super::Staged> {
     let mut text = String::new();
     for (k, v) in &meta.entries {
         // Keys and values are ours; a newline or '=' in a key would break the layout.
@@ -30,27 +45,33 @@ pub fn stage_partial(path: &Path, part: &Partial, meta: &Metadata) -> Result<sup
         text.push_str(&v.replace('\n', " "));
         text.push('\n');
     }
-    let s = &part.sums;
-    let mut bytes = Vec::with_capacity(64 + text.len() + s.sum.len() * 96);
-    bytes.extend_from_slice(MAGIC);
-    bytes.extend_from_slice(&(text.len() as u32).to_le_bytes());
-    bytes.extend_from_slice(text.as_bytes());
-    for v in [s.width, s.height, part.first, s.spp, part.total_spp] {
-        bytes.extend_from_slice(&v.to_le_bytes());
-    }
-    for (sum, sq) in s.sum.iter().zip(&s.sum_sq) {
-        for v in sum.iter().chain(sq) {
-            bytes.extend_from_slice(&v.to_le_bytes());
+    let pixels = header[0] as usize * header[1] as usize;
+    super::stage(path, |w| {
+        let io = |e| Error::io(path, e);
+        w.write_all(MAGIC).map_err(io)?;
+        w.write_all(&(text.len() as u32).to_le_bytes()).map_err(io)?;
+        w.write_all(text.as_bytes()).map_err(io)?;
+        for v in header {
+            w.write_all(&v.to_le_bytes()).map_err(io)?;
         }
-    }
-    match &part.prior {
-        Some(p) => {
-            bytes.push(1);
-            p.encode(&mut bytes);
+        let mut row = [0u8; 96];
+        for j in 0..pixels {
+            let (sum, sq) = pixel(j);
+            for (i, v) in sum.iter().chain(&sq).enumerate() {
+                row[16 * i..16 * i + 16].copy_from_slice(&v.to_le_bytes());
+            }
+            w.write_all(&row).map_err(io)?;
         }
-        None => bytes.push(0),
-    }
-    super::stage(path, |w| w.write_all(&bytes).map_err(|e| Error::io(path, e)))
+        let mut tail = Vec::new();
+        match prior {
+            Some(p) => {
+                tail.push(1);
+                p.encode(&mut tail);
+            }
+            None => tail.push(0),
+        }
+        w.write_all(&tail).map_err(io)
+    })
 }
 
 /// Reads a partial render written by [`stage_partial`].

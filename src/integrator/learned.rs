@@ -404,7 +404,7 @@ impl Integrator for LearnedZvidpt {
         let mut prior = PriorSamples::new(width, height);
         for k in 0..16u32 {
             let spp = 1u32 << k;
-            match (planned, time_budget) {
+            match (ctx.training_iterations.or(planned), time_budget) {
                 (Some(n), _) => {
                     if k >= n {
                         break;
@@ -443,6 +443,10 @@ impl Integrator for LearnedZvidpt {
 
     fn prior_samples(&self) -> Option<&PriorSamples> {
         self.prior.as_ref()
+    }
+
+    fn training_iterations(&self) -> Option<u32> {
+        Some(self.iterations.len() as u32)
     }
 
     /// Training iteration k took samples 2^k .. 2^(k+1); the render continues the sequence.

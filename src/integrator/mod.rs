@@ -31,6 +31,10 @@ pub struct RenderContext<'a, A: Accel> {
     pub time_limit: Option<f64>,
     /// The final sample count asked for, if any.
     pub spp: Option<u32>,
+    /// Training iterations a learning integrator must run (resuming a checkpoint of a
+    /// time-budgeted render, whose iteration count came from the clock): with the count fixed,
+    /// the pre-pass is a function of scene, options and seed alone.
+    pub training_iterations: Option<u32>,
 }
 
 /// Per-tile tallies and scratch memory, owned by the tile being rendered: no shared counters
@@ -68,6 +72,11 @@ pub trait Integrator: Sync + Send {
     /// taken in aligned blocks of it stay stratified together (training and render alike).
     fn first_sample_index(&self) -> u32 {
         0
+    }
+
+    /// Training iterations the pre-pass ran (learning integrators), for a checkpoint.
+    fn training_iterations(&self) -> Option<u32> {
+        None
     }
 
     /// Set-up for one pixel, once, before its first sample.

@@ -2,6 +2,8 @@
 //! budget, and a progress bar. Each tile owns its accumulators and per-pixel state, so the
 //! sample loop takes no lock and allocates nothing.
 pub mod aov;
+pub mod checkpoint;
+pub mod interrupt;
 
 use crate::accel::Accel;
 use crate::film::Image;
@@ -37,6 +39,8 @@ pub struct RenderSettings {
     pub samples: Option<(u32, u32)>,
     /// Progress as one JSON line per pass on stderr (for batches whose stderr is a file).
     pub progress_json: bool,
+    /// Keep a checkpoint (and continue an earlier run's).
+    pub checkpoint: Option<checkpoint::CheckpointSettings>,
 }
 
 impl Default for RenderSettings {
@@ -51,6 +55,7 @@ impl Default for RenderSettings {
             light_sampling: LightSampling::default(),
             samples: None,
             progress_json: false,
+            checkpoint: None,
         }
     }
 }
@@ -75,6 +80,10 @@ pub struct RenderStats {
     pub prior_spp: u32,
     /// A render of a sample range (`RenderSettings::samples`): its exact sums, to merge.
     pub partial: Option<std::sync::Arc<Partial>>,
+    /// Samples per pixel taken from a checkpoint (included in `spp`, not in `samples`).
+    pub resumed_spp: u32,
+    /// Seconds the earlier runs of a resumed render took (not in `seconds`).
+    pub resumed_seconds: f64,
 }
 
 impl RenderStats {
@@ -82,6 +91,12 @@ impl RenderStats {
     /// Samples per second of sampling (pre-pass excluded).
     pub fn samples_per_second(&self) -> f64 {
         self.samples as f64 / (self.seconds - self.prepass_seconds).max(1e-9)
+    }
+
+    /// Seconds over every run of a resumed render.
+    #[must_use]
+    pub fn total_seconds(&self) -> f64 {
+        self.seconds + self.resumed_seconds
     }
 
     /// Rays per second of sampling (pre-pass excluded).
@@ -202,13 +217,18 @@ fn render_in_pool<A: Accel, I: Integrator>(
 ) -> Result<(Image, RenderStats)> {
     let (width, height) = (scene.camera.width, scene.camera.height);
     let start = Instant::now();
+    let resume = settings.checkpoint.as_ref().and_then(|c| c.resume.as_ref());
+    let resumed_seconds = resume.map_or(0.0, |r| r.seconds);
+    // A resumed time budget continues with what is left of it.
+    let time_limit = settings.time_limit.map(|t| t - resumed_seconds);
     let ctx = RenderContext {
         scene,
         accel,
         light_sampling: settings.light_sampling,
         start,
-        time_limit: settings.time_limit,
+        time_limit,
         spp: settings.spp,
+        training_iterations: resume.and_then(|r| r.training_iterations),
     };
     let prepass = integrator.prepare(&ctx, settings.seed)?;
     let prepass_seconds = start.elapsed().as_secs_f64();
@@ -249,18 +269,78 @@ fn render_in_pool<A: Accel, I: Integrator>(
             (a, Some(b))
         }
     };
+    let total_spp = settings.spp.unwrap_or(u32::MAX);
+    let mut done = first;
+    if let (Some(r), Some(c)) = (resume, &settings.checkpoint) {
+        checkpoint::check_fits(r, &c.path, (width, height), first, total_spp, prior)?;
+        if last.is_some_and(|n| first + r.part.sums.spp > n) {
+            return Err(Error::InvalidOption(format!("{}: the checkpoint holds more samples", c.path.display())));
+        }
+        let sums = &r.part.sums;
+        tiles.par_iter_mut().for_each(|tile| {
+            let (origin, size) = (tile.origin, tile.size);
+            for y in 0..size.y {
+                for x in 0..size.x {
+                    let (i, j) = ((y * size.x + x) as usize, ((origin.y + y) * width + origin.x + x) as usize);
+                    (tile.sum[i], tile.sum_sq[i]) = (sums.sum[j], sums.sum_sq[j]);
+                }
+            }
+        });
+        done += sums.spp;
+    }
+    let resumed_spp = done - first;
     let bar = progress_bar(settings);
+    bar.set_position(u64::from(resumed_spp));
     tiles.par_iter_mut().for_each(|tile| {
         let mut scratch = Scratch::default();
         tile.state = tile.pixels().map(|(_, p)| integrator.setup_pixel(&ctx, p, settings.seed, &mut scratch)).collect();
         tile.scratch = scratch;
     });
+    // While sampling, a signal is answered by a checkpoint (see `interrupt`).
+    let _watch = settings.checkpoint.as_ref().map(|_| interrupt::Watch::new());
+    let mut last_checkpoint = Instant::now();
+    // Seconds of this run that count against a time budget: a resumed render's rebuilt
+    // pre-pass was paid for in its first run.
+    let budget_seconds = || start.elapsed().as_secs_f64() - if resume.is_some() { prepass_seconds } else { 0.0 };
+    let save = |tiles: &[Tile<I::PixelState>], done: u32| -> Result<()> {
+        let Some(c) = &settings.checkpoint else { return Ok(()) };
+        let progress = checkpoint::Progress {
+            first,
+            done,
+            total_spp,
+            seconds: resumed_seconds + budget_seconds(),
+            training_iterations: integrator.training_iterations(),
+        };
+        let tiles_x = width.div_ceil(ts) as usize;
+        let at = |j: usize| {
+            let (x, y) = (j as u32 % width, j as u32 / width);
+            let tile = &tiles[(y / ts) as usize * tiles_x + (x / ts) as usize];
+            let i = ((y - tile.origin.y) * tile.size.x + (x - tile.origin.x)) as usize;
+            (tile.sum[i], tile.sum_sq[i])
+        };
+        checkpoint::write(c, (width, height), &progress, at, prior)
+    };
     // Whole passes. A pass is one sample per pixel under a time budget (so the budget is
     // overshot by at most one pass) and a few samples otherwise (fewer, larger tasks).
-    let mut done = first;
     loop {
-        let elapsed = start.elapsed().as_secs_f64();
-        if last.is_some_and(|n| done >= n) || (done > 0 && settings.time_limit.is_some_and(|t| elapsed >= t)) {
+        if settings.checkpoint.is_some()
+            && let Some(signal) = interrupt::requested()
+        {
+            bar.finish_and_clear();
+            let kept = if done > first {
+                save(&tiles, done)?;
+                format!(
+                    "interrupted: {} samples per pixel kept in {} (`--resume` continues)",
+                    done - first,
+                    settings.checkpoint.as_ref().map_or(String::new(), |c| c.path.display().to_string())
+                )
+            } else {
+                "interrupted before the first pass: nothing to keep".to_string()
+            };
+            return Err(Error::Interrupted { signal, message: kept });
+        }
+        let elapsed = budget_seconds();
+        if last.is_some_and(|n| done >= n) || (done > 0 && time_limit.is_some_and(|t| elapsed >= t)) {
             break;
         }
         let remaining = last.map_or(u32::MAX, |n| n - done);
@@ -274,7 +354,7 @@ fn render_in_pool<A: Accel, I: Integrator>(
         done += pass;
         match (settings.spp, settings.time_limit) {
             (Some(_), None) => bar.set_position(u64::from(done - first)),
-            (_, Some(t)) => bar.set_position(((start.elapsed().as_secs_f64() / t) * 1000.0).min(1000.0) as u64),
+            (_, Some(t)) => bar.set_position((((resumed_seconds + budget_seconds()) / t) * 1000.0).min(1000.0) as u64),
             _ => {}
         }
         if settings.progress_json {
@@ -286,6 +366,14 @@ fn render_in_pool<A: Accel, I: Integrator>(
                 "seconds": start.elapsed().as_secs_f64(),
             });
             let _ = writeln!(std::io::stderr().lock(), "{line}");
+        }
+        let finished = last.is_some_and(|n| done >= n);
+        if let Some(c) = &settings.checkpoint
+            && !finished
+            && last_checkpoint.elapsed().as_secs_f64() >= c.interval
+        {
+            save(&tiles, done)?;
+            last_checkpoint = Instant::now();
         }
     }
     let seconds = start.elapsed().as_secs_f64();
@@ -336,7 +424,9 @@ fn render_in_pool<A: Accel, I: Integrator>(
         spp: done,
         seconds,
         prepass_seconds,
-        samples: done as u64 * (width * height) as u64,
+        samples: u64::from(done - resumed_spp) * u64::from(width * height),
+        resumed_spp,
+        resumed_seconds,
         rays,
         threads,
         prepass,
