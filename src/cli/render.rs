@@ -287,6 +287,14 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
             args.output.display(),
             png.as_ref().map_or(String::new(), |p| format!(", {}", p.display())),
         );
+        if stats.checkpoints > 0 {
+            out!(
+                "checkpoints: {} in {:.3} s ({:.2}% of the render)",
+                stats.checkpoints,
+                stats.checkpoint_seconds,
+                100.0 * stats.checkpoint_seconds / stats.seconds.max(1e-9)
+            );
+        }
         Ok(())
     };
     if let Err(e) = summary()

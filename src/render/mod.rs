@@ -84,6 +84,9 @@ pub struct RenderStats {
     pub resumed_spp: u32,
     /// Seconds the earlier runs of a resumed render took (not in `seconds`).
     pub resumed_seconds: f64,
+    /// Checkpoints written during the render, and the seconds they took (in `seconds`).
+    pub checkpoints: u32,
+    pub checkpoint_seconds: f64,
 }
 
 impl RenderStats {
@@ -299,6 +302,8 @@ fn render_in_pool<A: Accel, I: Integrator>(
     // While sampling, a signal is answered by a checkpoint (see `interrupt`).
     let _watch = settings.checkpoint.as_ref().map(|_| interrupt::Watch::new());
     let mut last_checkpoint = Instant::now();
+    // Checkpoints written on the way, and their seconds.
+    let mut checkpoints = (0u32, 0.0f64);
     // Seconds of this run that count against a time budget: a resumed render's rebuilt
     // pre-pass was paid for in its first run.
     let budget_seconds = || start.elapsed().as_secs_f64() - if resume.is_some() { prepass_seconds } else { 0.0 };
@@ -372,7 +377,10 @@ fn render_in_pool<A: Accel, I: Integrator>(
             && !finished
             && last_checkpoint.elapsed().as_secs_f64() >= c.interval
         {
+            let t = Instant::now();
             save(&tiles, done)?;
+            checkpoints.0 += 1;
+            checkpoints.1 += t.elapsed().as_secs_f64();
             last_checkpoint = Instant::now();
         }
     }
@@ -427,6 +435,8 @@ fn render_in_pool<A: Accel, I: Integrator>(
         samples: u64::from(done - resumed_spp) * u64::from(width * height),
         resumed_spp,
         resumed_seconds,
+        checkpoints: checkpoints.0,
+        checkpoint_seconds: checkpoints.1,
         rays,
         threads,
         prepass,
