@@ -31,6 +31,8 @@
 //!
 //! The renderer itself is reached through [`Runner`], so that this module holds the batch
 //! logic and the command line only wires it to `zvidpt render`.
+pub mod slurm;
+
 use crate::{Error, Result};
 use std::path::{Path, PathBuf};
 use std::time::Instant;

@@ -1,7 +1,7 @@
 //! `zvidpt batch`: runs a job file through [`crate::batch`], each job as `zvidpt render` with
 //! the job's flags, and writes the summary.
 use super::*;
-use crate::batch::{self, BatchOptions, Job, Outcome, Report, Runner, Status};
+use crate::batch::{self, BatchOptions, Job, Outcome, Report, Runner, Status, slurm};
 
 #[derive(Debug, Args)]
 pub struct BatchArgs {
@@ -19,6 +19,24 @@ pub struct BatchArgs {
     /// List the jobs (and which would be skipped) without rendering.
     #[arg(long)]
     pub dry_run: bool,
+    /// Submit the jobs to Slurm instead of rendering here: each job as an array of
+    /// --tasks sample ranges plus a merge job that runs when they all succeeded (a job with a
+    /// time budget or first-hit AOVs as one task). Prints the job ids; see --status.
+    #[arg(long, conflicts_with_all = ["dry_run", "status"])]
+    pub slurm: bool,
+    /// Array tasks per job (--slurm).
+    #[arg(long, default_value_t = 4, requires = "slurm")]
+    pub tasks: u32,
+    /// CPUs per Slurm task; each task renders with as many threads (--slurm).
+    #[arg(long, default_value_t = 1, requires = "slurm")]
+    pub cpus_per_task: u32,
+    /// An extra sbatch argument, e.g. --sbatch-arg=--partition=gpu (repeatable; --slurm).
+    #[arg(long, allow_hyphen_values = true, requires = "slurm", value_name = "ARG")]
+    pub sbatch_arg: Vec<String>,
+    /// Report each job's progress from its output, part and checkpoint files (and which
+    /// Slurm jobs of it are still queued), without rendering.
+    #[arg(long, conflicts_with = "dry_run")]
+    pub status: bool,
 }
 
 pub(super) fn check_batch_options(args: &BatchArgs) -> Result<()> {
@@ -27,6 +45,75 @@ pub(super) fn check_batch_options(args: &BatchArgs) -> Result<()> {
     }
     if args.threads == Some(0) {
         return Err(Error::InvalidOption("--threads must be at least 1".into()));
+    }
+    if args.tasks == 0 || args.cpus_per_task == 0 {
+        return Err(Error::InvalidOption("--tasks and --cpus-per-task must be at least 1".into()));
+    }
+    Ok(())
+}
+
+/// `--status`: each job's state from its files.
+fn report_status(jobs: &[Job], runner: &Renders, tasks: u32) -> Result<()> {
+    out!("{:<34}  {:<12}  {:<40}  job", "state", "queued", "output");
+    for job in jobs {
+        let queued = slurm::queued_jobs(job);
+        let state = if runner.is_done(job) {
+            "done".to_string()
+        } else {
+            let p = slurm::progress(job, tasks);
+            let total = p.spp_total.map_or(String::new(), |t| format!("/{t}"));
+            match p.parts {
+                Some((n, m)) if n == m && !queued.is_empty() => format!("{n}/{n} parts, merging"),
+                Some((n, m)) if n == m => format!("{n}/{n} parts, merge failed: see merge.log"),
+                Some((k, n)) if k > 0 || p.spp_done > 0 => format!("{}{total} spp, {k}/{n} parts", p.spp_done),
+                _ if p.spp_done > 0 => format!("{}{total} spp (checkpoint)", p.spp_done),
+                _ if !queued.is_empty() => "queued".to_string(),
+                _ => "not started".to_string(),
+            }
+        };
+        let queued = if queued.is_empty() { "-".to_string() } else { queued.join(",") };
+        out!("{:<34}  {:<12}  {:<40}  {}", state, queued, job.output.display().to_string(), job.origin);
+    }
+    Ok(())
+}
+
+/// `--slurm`: submits every job not done yet.
+fn submit_all(args: &BatchArgs, jobs: &[Job], runner: &Renders) -> Result<()> {
+    for job in jobs {
+        runner.check(job).map_err(|e| Error::InvalidOption(format!("{}: {e}", job.origin)))?;
+        slurm::split_of(job, args.tasks)?;
+    }
+    let exe = std::env::current_exe().map_err(|e| Error::io("the zvidpt executable", e))?;
+    let workdir = std::env::current_dir().map_err(|e| Error::io("the current folder", e))?;
+    let options = slurm::SlurmOptions {
+        tasks: args.tasks,
+        cpus_per_task: args.cpus_per_task,
+        sbatch_args: args.sbatch_arg.clone(),
+        exe,
+        workdir,
+    };
+    for job in jobs {
+        if runner.is_done(job) {
+            out!("{}: done already ({})", job.origin, job.output.display());
+            continue;
+        }
+        if let Some(parent) = job.output.parent().filter(|p| !p.as_os_str().is_empty() && !p.exists()) {
+            std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
+        }
+        match slurm::submit(job, &options).map_err(|e| Error::InvalidOption(format!("{}: {e}", job.origin)))? {
+            None => {
+                out!("{}: still queued from an earlier submission ({})", job.origin, slurm::queued_jobs(job).join(","))
+            }
+            Some(s) => match (&s.split, &s.merge) {
+                (slurm::Split::Samples { spp, tasks }, Some(m)) => out!(
+                    "{}: array job {} ({tasks} tasks of {spp} spp), merge job {m} -> {}",
+                    job.origin,
+                    s.render,
+                    job.output.display()
+                ),
+                _ => out!("{}: job {} (one task) -> {}", job.origin, s.render, job.output.display()),
+            },
+        }
     }
     Ok(())
 }
@@ -109,6 +196,12 @@ pub fn run_batch(args: &BatchArgs) -> Result<()> {
     use std::io::IsTerminal as _;
     let json_progress = !std::io::stderr().is_terminal();
     let runner = Renders { quiet: args.parallel > 1, json: json_progress };
+    if args.status {
+        return report_status(&jobs, &runner, args.tasks);
+    }
+    if args.slurm {
+        return submit_all(args, &jobs, &runner);
+    }
     if args.dry_run {
         for job in &jobs {
             runner.check(job).map_err(|e| Error::InvalidOption(format!("{}: {e}", job.origin)))?;

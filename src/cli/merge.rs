@@ -20,6 +20,10 @@ pub struct MergeArgs {
     /// PNG exposure in stops.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub exposure: f32,
+    /// Set by `zvidpt batch --slurm`'s merge job: the batch job's fingerprint, kept in the
+    /// metadata so that a rerun of the batch skips this render.
+    #[arg(long, hide = true)]
+    pub job_key: Option<String>,
 }
 
 /// Metadata that differs between parts of one render (timings, machine, range).
@@ -98,6 +102,9 @@ pub fn run_merge(args: &MergeArgs) -> Result<()> {
     meta.push("seconds", format!("{seconds:.3}"));
     meta.push("rays", rays);
     meta.push("version", crate::VERSION);
+    if let Some(key) = &args.job_key {
+        meta.push("job", key);
+    }
     let mut staged = vec![film::stage_exr(&args.output, &image, &meta)?];
     if let Some(p) = &png {
         staged.push(film::stage_png(p, &image, args.exposure)?);

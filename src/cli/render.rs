@@ -167,7 +167,10 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     if let Some(c) = &checkpoint {
         match &c.resume {
             Some(r) => warn!("resuming {} after {} spp ({:.1} s)", c.path.display(), r.part.sums.spp, r.seconds),
-            None if args.resume => warn!("note: no checkpoint at {}: rendering from the start", c.path.display()),
+            // (Batches and Slurm tasks always ask to resume: no note for them.)
+            None if args.resume && !args.quiet && args.job_key.is_none() => {
+                warn!("note: no checkpoint at {}: rendering from the start", c.path.display());
+            }
             None if c.path.exists() => warn!(
                 "warning: replacing the checkpoint of an interrupted render at {} (--resume continues it)",
                 c.path.display()
@@ -176,7 +179,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         }
     }
     let settings = RenderSettings {
-        spp: args.spp.or(if args.time.is_some() { None } else { Some(64) }),
+        spp: args.spp.or(if args.time.is_some() { None } else { Some(crate::render::DEFAULT_SPP) }),
         time_limit: args.time,
         seed: args.seed,
         threads: args.machine.threads,

@@ -12,7 +12,7 @@ pub use atomic::{
 };
 pub use exr_io::{read_exr, read_exr_from, stage_exr, stage_exr_with, write_exr};
 pub use metrics::{Metrics, error_map_png, metrics, metrics_of_rows};
-pub use partial::{parse_partial, read_partial, stage_partial, stage_sums};
+pub use partial::{PartialHeader, parse_partial, read_partial, read_partial_header, stage_partial, stage_sums};
 pub use png_out::write_rgb8 as write_rgb8_png;
 pub use png_out::{stage_png, to_srgb8, write_png};
 

@@ -124,8 +124,29 @@ pub fn read_partial(path: &Path) -> Result<(Partial, Metadata)> {
     parse_partial(&bytes, path)
 }
 
-/// A partial render from its bytes (`path` names it in errors).
-pub fn parse_partial(bytes: &[u8], path: &Path) -> Result<(Partial, Metadata)> {
+/// What a partial render's header says: its size and sample range.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PartialHeader {
+    pub width: u32,
+    pub height: u32,
+    pub first: u32,
+    pub spp: u32,
+    pub total_spp: u32,
+}
+
+/// Reads only the header and metadata of a partial render (for progress reports: the sums
+/// of a large image are not read).
+pub fn read_partial_header(path: &Path) -> Result<(PartialHeader, Metadata)> {
+    use std::io::Read as _;
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut head = Vec::new();
+    file.take(16 + 4 + MAX_META_BYTES as u64 + 20).read_to_end(&mut head).map_err(|e| Error::io(path, e))?;
+    let (header, meta, _) = parse_header(&head, path)?;
+    Ok((header, meta))
+}
+
+/// The header of a partial render and the bytes after it.
+fn parse_header<'a>(bytes: &'a [u8], path: &Path) -> Result<(PartialHeader, Metadata, &'a [u8])> {
     let mut b = bytes;
     let Some((magic, rest)) = b.split_first_chunk::<16>() else { return Err(bad(path, "too short")) };
     if magic != MAGIC {
@@ -157,6 +178,13 @@ pub fn parse_partial(bytes: &[u8], path: &Path) -> Result<(Partial, Metadata)> {
     if spp == 0 || first.checked_add(spp).is_none_or(|end| end > total_spp) {
         return Err(bad(path, "sample range"));
     }
+    Ok((PartialHeader { width, height, first, spp, total_spp }, meta, b))
+}
+
+/// A partial render from its bytes (`path` names it in errors).
+pub fn parse_partial(bytes: &[u8], path: &Path) -> Result<(Partial, Metadata)> {
+    let (PartialHeader { width, height, first, spp, total_spp }, meta, mut b) = parse_header(bytes, path)?;
+    let pixels = u64::from(width) * u64::from(height);
     let pixels = pixels as usize;
     // Every pixel takes at least 6 bytes: a shorter file is cut off (and reserves no memory).
     if (b.len() as u64) < pixels as u64 * 6 + 1 {

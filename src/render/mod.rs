@@ -18,6 +18,9 @@ use rayon::prelude::*;
 use std::io::IsTerminal;
 use std::time::Instant;
 
+/// Samples per pixel of a render given neither a sample count nor a time budget.
+pub const DEFAULT_SPP: u32 = 64;
+
 /// How long and how to render.
 #[derive(Clone, Debug)]
 pub struct RenderSettings {
