@@ -129,7 +129,9 @@ pub fn commit(mut files: Vec<Staged>) -> Result<()> {
     let mut moved: Vec<(PathBuf, Option<PathBuf>)> = Vec::new();
     let mut failure = None;
     for f in &files {
-        let backup = if f.dest.exists() {
+        // One file alone is replaced by one rename, atomic on its own: at every instant the
+        // destination holds the old or the new content (a checkpoint survives SIGKILL).
+        let backup = if files.len() > 1 && f.dest.exists() {
             let b = sibling(&f.dest, "bak");
             if let Err(e) = std::fs::rename(&f.dest, &b) {
                 failure = Some(Error::io(&f.dest, e));
