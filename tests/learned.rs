@@ -3,6 +3,10 @@
 //! a starved learning budget; learning is deterministic whatever the thread count; and in the
 //! furnace the learned walk's variance is far below the path tracer's. Seeds are fixed; each
 //! bound is stated where it is used.
+//!
+//! These tests build the obvhs backend (`BvhAccel`) themselves: a build with `--features embree`
+//! would run the same code again, so they are compiled only without it (CI runs both builds).
+#![cfg(not(feature = "embree"))]
 mod common;
 use common::*;
 use std::sync::OnceLock;

@@ -83,7 +83,7 @@ fn render_args<'a>(scene: &'a str, integrator: &'a str, spp: &'a str, out: &'a P
         "--integrator",
         integrator,
         "--resolution",
-        "64x48",
+        "32x24",
         "--seed",
         "7",
         "--spp",
@@ -228,7 +228,7 @@ fn an_interrupted_batch_continues_when_run_again() {
     let job = |name: &str| {
         format!(
             "[[job]]\nscene = \"{scene}\"\noutput = \"{name}.exr\"\nintegrator = \"path\"\nspp = 1024\nseed = 7\n\
-             resolution = \"64x48\"\nno_png = true\ncheckpoint_every = 0\n"
+             resolution = \"32x24\"\nno_png = true\ncheckpoint_every = 0\n"
         )
     };
     std::fs::write(&jobs, format!("{}{}", job("one"), job("two"))).unwrap();
