@@ -1,0 +1,214 @@
+//! The tests Mitsuba 3 and pbrt-v4 run on their BSDFs: sampled directions follow `pdf` (a
+//! chi-square test over the sphere), `pdf` integrates to the fraction of samples returned, the
+//! sample weight is `eval·cos/pdf`, reflection is reciprocal, and the albedo stays ≤ 1 (= the
+//! Fresnel reflectance for a mirror). Seeds are fixed.
+use super::*;
+use crate::sampler::SampleStream;
+use crate::stats::chi_square_critical;
+use std::f32::consts::TAU;
+
+fn dir(theta: f32, phi: f32) -> Vec3A {
+    Vec3A::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+}
+
+/// A direction from a bin coordinate: `cos θ ∈ [−1, 1]`, `φ ∈ [0, 2π)` (equal-area bins).
+fn from_bin(c: f64, p: f64) -> Vec3A {
+    let s = (1.0 - c * c).max(0.0).sqrt();
+    Vec3A::new((s * p.cos()) as f32, (s * p.sin()) as f32, c as f32)
+}
+
+const N_COS: usize = 16;
+const N_PHI: usize = 32;
+
+/// Expected share of samples per bin: `pdf` integrated over it by a 12×12 midpoint rule.
+fn expected(pdf: impl Fn(Vec3A) -> f32) -> Vec<f64> {
+    let sub = 12;
+    let (dc, dp) = (2.0 / N_COS as f64, f64::from(TAU) / N_PHI as f64);
+    let mut out = vec![0.0; N_COS * N_PHI];
+    for (b, e) in out.iter_mut().enumerate() {
+        let (i, j) = (b / N_PHI, b % N_PHI);
+        for si in 0..sub {
+            for sj in 0..sub {
+                let c = -1.0 + dc * (i as f64 + (si as f64 + 0.5) / sub as f64);
+                let p = dp * (j as f64 + (sj as f64 + 0.5) / sub as f64);
+                *e += f64::from(pdf(from_bin(c, p))) * dc * dp / (sub * sub) as f64;
+            }
+        }
+    }
+    out
+}
+
+/// Histogram of `n` sampled directions and how many samples returned one.
+fn histogram(bsdf: &Bsdf, wi: Vec3A, n: u32, seed: u64) -> (Vec<f64>, u32) {
+    let mut h = vec![0.0; N_COS * N_PHI];
+    let mut got = 0;
+    let mut rng = SampleStream::new(seed, 0, 0);
+    for _ in 0..n {
+        let Some(s) = bsdf.sample(wi, rng.next_2d()) else { continue };
+        got += 1;
+        let c = ((f64::from(s.wo.z) + 1.0) / 2.0 * N_COS as f64).clamp(0.0, N_COS as f64 - 1.0) as usize;
+        let mut phi = f64::from(s.wo.y).atan2(f64::from(s.wo.x));
+        if phi < 0.0 {
+            phi += f64::from(TAU);
+        }
+        let p = (phi / f64::from(TAU) * N_PHI as f64).clamp(0.0, N_PHI as f64 - 1.0) as usize;
+        h[c * N_PHI + p] += 1.0;
+    }
+    (h, got)
+}
+
+/// Pearson's statistic over the bins (bins expecting fewer than 5 samples pooled) and its
+/// degrees of freedom.
+fn chi2(observed: &[f64], expected_share: &[f64], n: u32) -> (f64, usize) {
+    let (mut stat, mut bins) = (0.0, 0);
+    let (mut pool_o, mut pool_e) = (0.0, 0.0);
+    for (o, e) in observed.iter().zip(expected_share) {
+        let e = e * f64::from(n);
+        if e < 5.0 {
+            pool_o += o;
+            pool_e += e;
+        } else {
+            stat += (o - e) * (o - e) / e;
+            bins += 1;
+        }
+    }
+    if pool_e >= 5.0 {
+        stat += (pool_o - pool_e) * (pool_o - pool_e) / pool_e;
+        bins += 1;
+    } else {
+        // Samples where `pdf` expects (nearly) none are a failure in themselves.
+        stat += (pool_o - pool_e).max(0.0) * 10.0;
+    }
+    (stat, bins.max(2) - 1)
+}
+
+/// Runs the chi-square test of `bsdf`'s sampling against `pdf` for `wi`; returns the
+/// statistic and its critical value at the family-wise level `alpha`.
+fn chi2_test(bsdf: &Bsdf, pdf: &Bsdf, wi: Vec3A, alpha: f64) -> (f64, f64) {
+    let n = 400_000;
+    let (h, _) = histogram(bsdf, wi, n, 17);
+    let e = expected(|wo| pdf.pdf(wi, wo));
+    let (stat, dof) = chi2(&h, &e, n);
+    (stat, chi_square_critical(dof, alpha))
+}
+
+fn models() -> Vec<(&'static str, Bsdf)> {
+    let gold = (Vec3A::new(0.143, 0.375, 1.442), Vec3A::new(3.983, 2.386, 1.603));
+    vec![
+        ("diffuse", Bsdf::Diffuse { reflectance: Vec3A::new(0.8, 0.5, 0.2) }),
+        ("conductor α=0.2", Bsdf::conductor(gold.0, gold.1, 0.2)),
+        ("conductor α=0.5", Bsdf::conductor(gold.0, gold.1, 0.5)),
+        ("conductor α=1", Bsdf::conductor(gold.0, gold.1, 1.0)),
+    ]
+}
+
+const ANGLES: [f32; 4] = [0.1, 0.7, 1.2, 1.5];
+
+/// Sampling follows `pdf`: the chi-square statistic stays below its critical value at a
+/// family-wise false-alarm rate of 1e-3 over the 16 (model, angle) pairs (Šidák-corrected).
+#[test]
+fn sampling_follows_pdf() {
+    let alpha = 1.0 - (1.0 - 1e-3f64).powf(1.0 / 16.0);
+    for (name, b) in models() {
+        for theta in ANGLES {
+            let wi = dir(theta, 0.3);
+            let (stat, critical) = chi2_test(&b, &b, wi, alpha);
+            assert!(stat < critical, "{name}, θi {theta}: χ² {stat:.1} ≥ {critical:.1}");
+        }
+    }
+}
+
+/// The test has power: a pdf 10% too rough for the samples (α 0.55 against 0.5) fails it.
+#[test]
+fn chi_square_rejects_a_wrong_pdf() {
+    let gold = (Vec3A::new(0.143, 0.375, 1.442), Vec3A::new(3.983, 2.386, 1.603));
+    let sampled = Bsdf::conductor(gold.0, gold.1, 0.5);
+    let claimed = Bsdf::conductor(gold.0, gold.1, 0.55);
+    let (stat, critical) = chi2_test(&sampled, &claimed, dir(0.7, 0.3), 1e-3);
+    assert!(stat > critical, "χ² {stat:.1} below {critical:.1}");
+}
+
+/// `∫ pdf dω` equals the fraction of calls that return a direction (within 1% absolute: the
+/// midpoint rule's error, and 3σ of the fraction's binomial noise at 400k samples ≈ 0.2%).
+#[test]
+fn pdf_integrates_to_the_sampled_fraction() {
+    for (name, b) in models() {
+        for theta in ANGLES {
+            let wi = dir(theta, 0.3);
+            let total: f64 = expected(|wo| b.pdf(wi, wo)).iter().sum();
+            let (_, got) = histogram(&b, wi, 400_000, 5);
+            let fraction = f64::from(got) / 400_000.0;
+            assert!((total - fraction).abs() < 0.01, "{name}, θi {theta}: ∫pdf {total:.4}, sampled {fraction:.4}");
+        }
+    }
+}
+
+/// Each sample's weight is `eval·cos θo / pdf`, to 1e-3 relative.
+#[test]
+fn weights_are_eval_cos_over_pdf() {
+    let mut rng = SampleStream::new(9, 0, 0);
+    for (name, b) in models() {
+        for theta in ANGLES {
+            let wi = dir(theta, 1.1);
+            for _ in 0..2000 {
+                let Some(s) = b.sample(wi, rng.next_2d()) else { continue };
+                let want = b.eval(wi, s.wo) * s.wo.z / s.pdf;
+                assert!(
+                    (s.pdf - b.pdf(wi, s.wo)).abs() <= 1e-3 * s.pdf,
+                    "{name}: pdf {} vs {}",
+                    s.pdf,
+                    b.pdf(wi, s.wo)
+                );
+                let err = (s.weight - want).abs().max_element();
+                assert!(err <= 1e-3 * want.max_element().max(1e-6), "{name}: weight {} vs {want}", s.weight);
+            }
+        }
+    }
+}
+
+/// `f(wi, wo) = f(wo, wi)`.
+#[test]
+fn reflection_is_reciprocal() {
+    let mut rng = SampleStream::new(4, 0, 0);
+    for (name, b) in models() {
+        for _ in 0..5000 {
+            let wi = crate::geometry::warp::cosine_hemisphere(rng.next_2d());
+            let wo = crate::geometry::warp::cosine_hemisphere(rng.next_2d());
+            let (a, c) = (b.eval(wi, wo), b.eval(wo, wi));
+            assert!((a - c).abs().max_element() <= 1e-4 * a.max_element().max(1e-3), "{name}: {a} vs {c}");
+        }
+    }
+}
+
+/// A white furnace per incident direction: the albedo (mean weight) is at most 1 (3σ), a
+/// white diffuse surface's is 1, and a smooth conductor's is its Fresnel reflectance exactly
+/// (1 for a perfect reflector).
+#[test]
+fn energy_is_conserved() {
+    let white = Bsdf::Diffuse { reflectance: Vec3A::ONE };
+    let perfect =
+        Bsdf::Conductor { eta: Vec3A::splat(1e-4), k: Vec3A::splat(1e4), specular: Vec3A::ONE, roughness: None };
+    let white_metal = |alpha| Bsdf::conductor(Vec3A::splat(1e-4), Vec3A::splat(1e4), alpha);
+    let mut rng = SampleStream::new(8, 0, 0);
+    for theta in [0.0, 0.4, 0.8, 1.2, 1.5] {
+        let wi = dir(theta, 0.0);
+        for (name, b) in [("white", white), ("α 0.3", white_metal(0.3)), ("α 1", white_metal(1.0))] {
+            let n = 100_000;
+            let (mut sum, mut sum_sq) = (0.0f64, 0.0f64);
+            for _ in 0..n {
+                let w = b.sample(wi, rng.next_2d()).map_or(0.0, |s| f64::from(s.weight.max_element()));
+                sum += w;
+                sum_sq += w * w;
+            }
+            let mean = sum / f64::from(n);
+            let se = ((sum_sq / f64::from(n) - mean * mean).max(0.0) / f64::from(n)).sqrt();
+            assert!(mean <= 1.0 + 3.0 * se + 1e-6, "{name}, θi {theta}: albedo {mean} ± {se}");
+            if name == "white" {
+                assert!((mean - 1.0).abs() < 1e-5, "white diffuse albedo {mean}");
+            }
+        }
+        let s = perfect.sample(wi, Vec2::new(0.3, 0.6)).unwrap();
+        assert!(s.delta && (s.weight - Vec3A::ONE).abs().max_element() < 1e-3, "{}", s.weight);
+        assert!((s.wo.z - wi.z).abs() < 1e-6 && (s.wo.x + wi.x).abs() < 1e-6);
+    }
+}
