@@ -38,6 +38,13 @@ pub enum Bsdf {
     /// mirror without roughness, GGX microfacets with it (visible-normal sampling, Smith
     /// height-correlated masking).
     Conductor { eta: Vec3A, k: Vec3A, specular: Vec3A, roughness: Option<Ggx> },
+    /// Glass: reflection and refraction at an interface of relative index `eta` (inside over
+    /// outside; +z is the outside), smooth or rough (Walter et al. 2007, sampled through
+    /// visible normals, Fresnel choosing between the lobes). Radiance is scaled by `1/η²`
+    /// crossing into a medium of relative index `η`, as Mitsuba 3 does in radiance mode.
+    /// `thin`: a smooth thin sheet, both surfaces at once (inter-reflections summed; light
+    /// passes straight through, unscaled).
+    Dielectric { eta: f32, roughness: Option<Ggx>, thin: bool },
 }
 
 /// Mirror `w` about `m`.
@@ -54,19 +61,45 @@ impl Bsdf {
         Bsdf::Conductor { eta, k, specular: Vec3A::ONE, roughness }
     }
 
+    /// Glass of relative index `eta` and roughness `alpha` (smooth below
+    /// [`Ggx::MIN_ALPHA`]).
+    #[must_use]
+    pub fn dielectric(eta: f32, alpha: f32) -> Self {
+        let roughness = (alpha >= Ggx::MIN_ALPHA).then(|| Ggx::new(alpha));
+        Bsdf::Dielectric { eta, roughness, thin: false }
+    }
+
     /// Whether every direction it scatters to is a delta lobe (no NEE, no guiding through it).
     #[must_use]
     pub fn is_delta(&self) -> bool {
-        matches!(self, Bsdf::Conductor { roughness: None, .. })
+        matches!(
+            self,
+            Bsdf::Conductor { roughness: None, .. }
+                | Bsdf::Dielectric { roughness: None, .. }
+                | Bsdf::Dielectric { thin: true, .. }
+        )
+    }
+
+    /// Whether light passes through (both sides are lit and seen).
+    #[must_use]
+    pub fn transmits(&self) -> bool {
+        matches!(self, Bsdf::Dielectric { .. })
     }
 
     /// `f(wi, wo)` (0 for delta lobes).
     #[must_use]
     pub fn eval(&self, wi: Vec3A, wo: Vec3A) -> Vec3A {
+        if let Bsdf::Dielectric { eta, roughness, thin } = *self {
+            return match roughness {
+                Some(ggx) if !thin => Vec3A::splat(rough_dielectric(ggx, eta, wi, wo).0),
+                _ => Vec3A::ZERO,
+            };
+        }
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return Vec3A::ZERO;
         }
         match *self {
+            Bsdf::Dielectric { .. } => Vec3A::ZERO,
             Bsdf::Diffuse { reflectance } => reflectance * FRAC_1_PI,
             Bsdf::Conductor { roughness: None, .. } => Vec3A::ZERO,
             Bsdf::Conductor { eta, k, specular, roughness: Some(ggx) } => {
@@ -83,10 +116,17 @@ impl Bsdf {
     /// Density of [`Bsdf::sample`] choosing `wo` (its non-delta part).
     #[must_use]
     pub fn pdf(&self, wi: Vec3A, wo: Vec3A) -> f32 {
+        if let Bsdf::Dielectric { eta, roughness, thin } = *self {
+            return match roughness {
+                Some(ggx) if !thin => rough_dielectric(ggx, eta, wi, wo).1,
+                _ => 0.0,
+            };
+        }
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return 0.0;
         }
         match *self {
+            Bsdf::Dielectric { .. } => 0.0,
             Bsdf::Diffuse { .. } => wo.z * FRAC_1_PI,
             Bsdf::Conductor { roughness: None, .. } => 0.0,
             Bsdf::Conductor { roughness: Some(ggx), .. } => {
@@ -100,13 +140,18 @@ impl Bsdf {
         }
     }
 
-    /// A scattered direction for `wi`, from `u` in `[0,1)²`; `None` when nothing scatters.
+    /// A scattered direction for `wi`: `u_lobe` chooses a lobe (reflection or refraction),
+    /// `u` in `[0,1)²` the direction; `None` when nothing scatters.
     #[must_use]
-    pub fn sample(&self, wi: Vec3A, u: Vec2) -> Option<BsdfSample> {
+    pub fn sample(&self, wi: Vec3A, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        if let Bsdf::Dielectric { eta, roughness, thin } = *self {
+            return sample_dielectric(eta, roughness, thin, wi, u_lobe, u);
+        }
         if wi.z <= 0.0 {
             return None;
         }
         match *self {
+            Bsdf::Dielectric { .. } => None,
             Bsdf::Diffuse { reflectance } => {
                 let wo = crate::geometry::warp::cosine_hemisphere(u);
                 (wo.z > 0.0).then_some(BsdfSample { wo, weight: reflectance, pdf: wo.z * FRAC_1_PI, delta: false })
@@ -132,6 +177,111 @@ impl Bsdf {
             }
         }
     }
+}
+
+/// `wi` and `wo` mirrored so that `wi` is on the +z side, and the relative index seen from
+/// there (`eta` from outside, `1/eta` from inside).
+#[inline]
+fn upper(eta: f32, wi: Vec3A, wo: Vec3A) -> (Vec3A, Vec3A, f32) {
+    if wi.z >= 0.0 { (wi, wo, eta) } else { (-wi, -wo, 1.0 / eta) }
+}
+
+/// The refraction of `wi` (on `m`'s side, `cos_i = wi·m > 0`) through `m` into relative index
+/// `eta`, given the transmitted cosine `cos_t` (negative).
+#[inline]
+fn refract(wi: Vec3A, m: Vec3A, eta: f32, cos_i: f32, cos_t: f32) -> Vec3A {
+    -wi / eta + (cos_i / eta + cos_t) * m
+}
+
+/// `f` and `pdf` of the rough dielectric (Walter et al. 2007; radiance scaled by `1/η²`).
+fn rough_dielectric(ggx: Ggx, eta: f32, wi: Vec3A, wo: Vec3A) -> (f32, f32) {
+    let (wi, wo, eta) = upper(eta, wi, wo);
+    if wi.z == 0.0 || wo.z == 0.0 {
+        return (0.0, 0.0);
+    }
+    if wo.z > 0.0 {
+        let m = (wi + wo).normalize_or_zero();
+        let c = wi.dot(m);
+        if m == Vec3A::ZERO || c <= 0.0 {
+            return (0.0, 0.0);
+        }
+        let f = fresnel::dielectric(c, eta).0;
+        let value = f * ggx.d(m) * ggx.g(wi, wo, m) / (4.0 * wi.z * wo.z);
+        let pdf = f * ggx.visible_pdf(wi, m) / (4.0 * wo.dot(m));
+        (value, pdf)
+    } else {
+        // The half vector of a refraction, facing +z.
+        let mut m = (wi + eta * wo).normalize_or_zero();
+        if m.z < 0.0 {
+            m = -m;
+        }
+        let (ci, co) = (wi.dot(m), wo.dot(m));
+        if m == Vec3A::ZERO || ci <= 0.0 || co >= 0.0 {
+            return (0.0, 0.0);
+        }
+        let f = fresnel::dielectric(ci, eta).0;
+        let denom = ci + eta * co;
+        let value = (1.0 - f) * ggx.d(m) * ggx.g(wi, wo, m) * ci * (-co) / (wi.z * -wo.z * denom * denom);
+        let pdf = (1.0 - f) * ggx.visible_pdf(wi, m) * eta * eta * (-co) / (denom * denom);
+        (value, pdf)
+    }
+}
+
+/// Samples glass: Fresnel picks reflection or refraction (so `F` cancels from the weight).
+fn sample_dielectric(
+    eta: f32,
+    roughness: Option<Ggx>,
+    thin: bool,
+    wi: Vec3A,
+    u_lobe: f32,
+    u: Vec2,
+) -> Option<BsdfSample> {
+    if wi.z == 0.0 {
+        return None;
+    }
+    let flip = if wi.z > 0.0 { 1.0 } else { -1.0 };
+    let (wi_up, _, eta_up) = upper(eta, wi, wi);
+    if thin {
+        // A sheet: reflectance R + T²R/(1 − R²) of the two surfaces, the rest straight through.
+        let r = fresnel::dielectric(wi_up.z, eta).0;
+        let r = if r < 1.0 { r + (1.0 - r) * (1.0 - r) * r / (1.0 - r * r) } else { 1.0 };
+        let wo = if u_lobe < r { Vec3A::new(-wi.x, -wi.y, wi.z) } else { -wi };
+        return Some(BsdfSample { wo, weight: Vec3A::ONE, pdf: 1.0, delta: true });
+    }
+    let Some(ggx) = roughness else {
+        let (f, cos_t, eta_t) = fresnel::dielectric(wi_up.z, eta_up);
+        let (wo, weight) = if u_lobe < f {
+            (Vec3A::new(-wi_up.x, -wi_up.y, wi_up.z), 1.0)
+        } else {
+            (refract(wi_up, Vec3A::Z, eta_t, wi_up.z, cos_t), 1.0 / (eta_t * eta_t))
+        };
+        return Some(BsdfSample { wo: wo * flip, weight: Vec3A::splat(weight), pdf: 1.0, delta: true });
+    };
+    let m = ggx.sample_visible(wi_up, u);
+    let ci = wi_up.dot(m);
+    if ci <= 0.0 {
+        return None;
+    }
+    let (f, cos_t, eta_t) = fresnel::dielectric(ci, eta_up);
+    let (wo, weight) = if u_lobe < f {
+        let wo = reflect(wi_up, m);
+        if wo.z <= 0.0 {
+            return None;
+        }
+        (wo, 1.0)
+    } else {
+        let wo = refract(wi_up, m, eta_t, ci, cos_t);
+        if wo.z >= 0.0 {
+            return None;
+        }
+        (wo, 1.0 / (eta_t * eta_t))
+    };
+    let (_, pdf) = rough_dielectric(ggx, eta_up, wi_up, wo);
+    if !(pdf > 0.0 && pdf.is_finite()) {
+        return None;
+    }
+    let g = ggx.g(wi_up, wo, m) / ggx.g1(wi_up, m);
+    Some(BsdfSample { wo: wo * flip, weight: Vec3A::splat(weight * g), pdf, delta: false })
 }
 
 #[cfg(test)]

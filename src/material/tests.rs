@@ -20,19 +20,45 @@ fn from_bin(c: f64, p: f64) -> Vec3A {
 const N_COS: usize = 16;
 const N_PHI: usize = 32;
 
-/// Expected share of samples per bin: `pdf` integrated over it by a 12×12 midpoint rule.
-fn expected(pdf: impl Fn(Vec3A) -> f32) -> Vec<f64> {
-    let sub = 12;
+/// `pdf` integrated over one bin by a midpoint rule of `steps` × `steps`: in the two polar
+/// bins with `cos θ = ±(1 − t²·Δ)`, `t` uniform (points crowd at the pole, where the lobes of
+/// near-normal incidence peak).
+fn bin_integral(pdf: &impl Fn(Vec3A) -> f32, i: usize, j: usize, steps: usize) -> f64 {
     let (dc, dp) = (2.0 / N_COS as f64, f64::from(TAU) / N_PHI as f64);
+    let mut e = 0.0;
+    for si in 0..steps {
+        let x = (si as f64 + 0.5) / steps as f64;
+        let (c, w) = match i {
+            0 => (-1.0 + dc * x * x, 2.0 * dc * x / steps as f64),
+            _ if i == N_COS - 1 => (1.0 - dc * x * x, 2.0 * dc * x / steps as f64),
+            _ => (-1.0 + dc * (i as f64 + x), dc / steps as f64),
+        };
+        for sj in 0..steps {
+            let p = dp * (j as f64 + (sj as f64 + 0.5) / steps as f64);
+            e += f64::from(pdf(from_bin(c, p))) * w * dp / steps as f64;
+        }
+    }
+    e
+}
+
+/// Expected share of samples per bin: each bin's integral refined (8, 16, … up to 512 steps
+/// a side) until two refinements agree to 0.2% (or 1e-7 absolute). Glass pdfs jump to zero
+/// where the refracting microfacet would turn below the horizon: there a fixed 12×12 rule
+/// was 25% off in a bin the samples fill 730 times in 400k (checked against 4M samples).
+fn expected(pdf: impl Fn(Vec3A) -> f32) -> Vec<f64> {
     let mut out = vec![0.0; N_COS * N_PHI];
     for (b, e) in out.iter_mut().enumerate() {
         let (i, j) = (b / N_PHI, b % N_PHI);
-        for si in 0..sub {
-            for sj in 0..sub {
-                let c = -1.0 + dc * (i as f64 + (si as f64 + 0.5) / sub as f64);
-                let p = dp * (j as f64 + (sj as f64 + 0.5) / sub as f64);
-                *e += f64::from(pdf(from_bin(c, p))) * dc * dp / (sub * sub) as f64;
+        let mut steps = 8;
+        let mut last = bin_integral(&pdf, i, j, steps);
+        loop {
+            steps *= 2;
+            let next = bin_integral(&pdf, i, j, steps);
+            if (next - last).abs() <= 2e-3 * next.abs() + 1e-7 || steps >= 512 {
+                *e = next;
+                break;
             }
+            last = next;
         }
     }
     out
@@ -44,7 +70,8 @@ fn histogram(bsdf: &Bsdf, wi: Vec3A, n: u32, seed: u64) -> (Vec<f64>, u32) {
     let mut got = 0;
     let mut rng = SampleStream::new(seed, 0, 0);
     for _ in 0..n {
-        let Some(s) = bsdf.sample(wi, rng.next_2d()) else { continue };
+        let u_lobe = rng.next_f32();
+        let Some(s) = bsdf.sample(wi, u_lobe, rng.next_2d()) else { continue };
         got += 1;
         let c = ((f64::from(s.wo.z) + 1.0) / 2.0 * N_COS as f64).clamp(0.0, N_COS as f64 - 1.0) as usize;
         let mut phi = f64::from(s.wo.y).atan2(f64::from(s.wo.x));
@@ -99,18 +126,29 @@ fn models() -> Vec<(&'static str, Bsdf)> {
         ("conductor α=0.2", Bsdf::conductor(gold.0, gold.1, 0.2)),
         ("conductor α=0.5", Bsdf::conductor(gold.0, gold.1, 0.5)),
         ("conductor α=1", Bsdf::conductor(gold.0, gold.1, 1.0)),
+        ("glass α=0.2", Bsdf::dielectric(1.5, 0.2)),
+        ("glass α=0.6", Bsdf::dielectric(1.5, 0.6)),
     ]
 }
 
+/// Incident angles: from outside, and for glass from inside too (π − θ).
 const ANGLES: [f32; 4] = [0.1, 0.7, 1.2, 1.5];
 
+fn incident(b: &Bsdf) -> Vec<f32> {
+    let mut a = ANGLES.to_vec();
+    if b.transmits() {
+        a.extend(ANGLES.iter().map(|t| std::f32::consts::PI - t));
+    }
+    a
+}
+
 /// Sampling follows `pdf`: the chi-square statistic stays below its critical value at a
-/// family-wise false-alarm rate of 1e-3 over the 16 (model, angle) pairs (Šidák-corrected).
+/// family-wise false-alarm rate of 1e-3 over the 32 (model, angle) pairs (Šidák-corrected).
 #[test]
 fn sampling_follows_pdf() {
-    let alpha = 1.0 - (1.0 - 1e-3f64).powf(1.0 / 16.0);
+    let alpha = 1.0 - (1.0 - 1e-3f64).powf(1.0 / 32.0);
     for (name, b) in models() {
-        for theta in ANGLES {
+        for theta in incident(&b) {
             let wi = dir(theta, 0.3);
             let (stat, critical) = chi2_test(&b, &b, wi, alpha);
             assert!(stat < critical, "{name}, θi {theta}: χ² {stat:.1} ≥ {critical:.1}");
@@ -133,7 +171,7 @@ fn chi_square_rejects_a_wrong_pdf() {
 #[test]
 fn pdf_integrates_to_the_sampled_fraction() {
     for (name, b) in models() {
-        for theta in ANGLES {
+        for theta in incident(&b) {
             let wi = dir(theta, 0.3);
             let total: f64 = expected(|wo| b.pdf(wi, wo)).iter().sum();
             let (_, got) = histogram(&b, wi, 400_000, 5);
@@ -148,11 +186,12 @@ fn pdf_integrates_to_the_sampled_fraction() {
 fn weights_are_eval_cos_over_pdf() {
     let mut rng = SampleStream::new(9, 0, 0);
     for (name, b) in models() {
-        for theta in ANGLES {
+        for theta in incident(&b) {
             let wi = dir(theta, 1.1);
             for _ in 0..2000 {
-                let Some(s) = b.sample(wi, rng.next_2d()) else { continue };
-                let want = b.eval(wi, s.wo) * s.wo.z / s.pdf;
+                let u_lobe = rng.next_f32();
+                let Some(s) = b.sample(wi, u_lobe, rng.next_2d()) else { continue };
+                let want = b.eval(wi, s.wo) * s.wo.z.abs() / s.pdf;
                 assert!(
                     (s.pdf - b.pdf(wi, s.wo)).abs() <= 1e-3 * s.pdf,
                     "{name}: pdf {} vs {}",
@@ -166,16 +205,30 @@ fn weights_are_eval_cos_over_pdf() {
     }
 }
 
-/// `f(wi, wo) = f(wo, wi)`.
+/// `f(wi, wo) = f(wo, wi)` for reflection; through glass, with radiance scaled by `1/η²`,
+/// `f(wi, wo)·n(wo)² = f(wo, wi)·n(wi)²` (`n` the index of the side a direction lies on).
 #[test]
-fn reflection_is_reciprocal() {
+fn scattering_is_reciprocal() {
     let mut rng = SampleStream::new(4, 0, 0);
+    let sphere = |rng: &mut SampleStream| {
+        let w = crate::geometry::warp::cosine_hemisphere(rng.next_2d());
+        if rng.next_f32() < 0.5 { w } else { -w }
+    };
     for (name, b) in models() {
+        let eta = if let Bsdf::Dielectric { eta, .. } = b { eta } else { 1.0 };
+        let n = |w: Vec3A| if w.z > 0.0 { 1.0 } else { eta };
         for _ in 0..5000 {
-            let wi = crate::geometry::warp::cosine_hemisphere(rng.next_2d());
-            let wo = crate::geometry::warp::cosine_hemisphere(rng.next_2d());
-            let (a, c) = (b.eval(wi, wo), b.eval(wo, wi));
-            assert!((a - c).abs().max_element() <= 1e-4 * a.max_element().max(1e-3), "{name}: {a} vs {c}");
+            let (wi, wo) = if b.transmits() {
+                (sphere(&mut rng), sphere(&mut rng))
+            } else {
+                (
+                    crate::geometry::warp::cosine_hemisphere(rng.next_2d()),
+                    crate::geometry::warp::cosine_hemisphere(rng.next_2d()),
+                )
+            };
+            let (a, c) = (b.eval(wi, wo) * n(wo) * n(wo), b.eval(wo, wi) * n(wi) * n(wi));
+            // f32 rounding of the half vector: 1e-3 relative.
+            assert!((a - c).abs().max_element() <= 1e-3 * a.max_element().max(1e-3), "{name}: {a} vs {c} ({wi}, {wo})");
         }
     }
 }
@@ -192,11 +245,21 @@ fn energy_is_conserved() {
     let mut rng = SampleStream::new(8, 0, 0);
     for theta in [0.0, 0.4, 0.8, 1.2, 1.5] {
         let wi = dir(theta, 0.0);
-        for (name, b) in [("white", white), ("α 0.3", white_metal(0.3)), ("α 1", white_metal(1.0))] {
+        let glass =
+            [("glass α 0.3", Bsdf::dielectric(1.5, 0.3)), ("glass α 0.3 inside", Bsdf::dielectric(1.0 / 1.5, 0.3))];
+        for (name, b) in
+            [("white", white), ("α 0.3", white_metal(0.3)), ("α 1", white_metal(1.0))].into_iter().chain(glass)
+        {
             let n = 100_000;
             let (mut sum, mut sum_sq) = (0.0f64, 0.0f64);
+            // Energy, not radiance: a refracted sample's 1/η² scaling is undone.
+            let eta = if let Bsdf::Dielectric { eta, .. } = b { eta } else { 1.0 };
             for _ in 0..n {
-                let w = b.sample(wi, rng.next_2d()).map_or(0.0, |s| f64::from(s.weight.max_element()));
+                let u_lobe = rng.next_f32();
+                let w = b.sample(wi, u_lobe, rng.next_2d()).map_or(0.0, |s| {
+                    let unscale = if s.wo.z < 0.0 { eta * eta } else { 1.0 };
+                    f64::from(s.weight.max_element() * unscale)
+                });
                 sum += w;
                 sum_sq += w * w;
             }
@@ -207,8 +270,18 @@ fn energy_is_conserved() {
                 assert!((mean - 1.0).abs() < 1e-5, "white diffuse albedo {mean}");
             }
         }
-        let s = perfect.sample(wi, Vec2::new(0.3, 0.6)).unwrap();
+        let s = perfect.sample(wi, 0.5, Vec2::new(0.3, 0.6)).unwrap();
         assert!(s.delta && (s.weight - Vec3A::ONE).abs().max_element() < 1e-3, "{}", s.weight);
         assert!((s.wo.z - wi.z).abs() < 1e-6 && (s.wo.x + wi.x).abs() < 1e-6);
+        // Smooth glass: Fresnel splits the energy exactly; refraction obeys Snell's law.
+        let smooth = Bsdf::dielectric(1.5, 0.0);
+        let (f, _, _) = fresnel::dielectric(wi.z, 1.5);
+        let r = smooth.sample(wi, f * 0.999, Vec2::ZERO).unwrap();
+        let t = smooth.sample(wi, f + (1.0 - f) * 0.5, Vec2::ZERO).unwrap();
+        assert!(r.delta && r.wo.z > 0.0 && (r.weight - Vec3A::ONE).abs().max_element() < 1e-6);
+        assert!(t.delta && t.wo.z < 0.0 && (t.weight.x * 2.25 - 1.0).abs() < 1e-5, "{}", t.weight);
+        let sin_i = (1.0 - wi.z * wi.z).max(0.0).sqrt();
+        let sin_t = (1.0 - t.wo.z * t.wo.z).max(0.0).sqrt();
+        assert!((sin_i - 1.5 * sin_t).abs() < 1e-5, "Snell: {sin_i} vs 1.5 × {sin_t}");
     }
 }
