@@ -1,23 +1,9 @@
 //! `zvidpt batch` end to end: a job file with a matrix and a failing job renders what it can,
 //! records the failure, writes its summaries and exits non-zero; a rerun skips every finished
 //! job (resume) and leaves their files untouched; an edited scene renders again.
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn zvidpt(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_zvidpt")).args(args).env_remove("RUST_BACKTRACE").output().expect("binary runs")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("zvidpt-batch-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn text(o: &Output) -> String {
-    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
-}
+mod common;
+use common::cli::*;
+use std::path::Path;
 
 fn modified(p: &Path) -> std::time::SystemTime {
     std::fs::metadata(p).unwrap().modified().unwrap()
@@ -25,7 +11,7 @@ fn modified(p: &Path) -> std::time::SystemTime {
 
 #[test]
 fn batch_renders_records_failures_and_resumes() {
-    let dir = scratch("resume");
+    let dir = scratch("batch", "resume");
     // A copy of a shipped scene, to edit later.
     let scene = dir.join("paper");
     std::fs::create_dir_all(&scene).unwrap();
@@ -112,7 +98,7 @@ spp = 2
 
 #[test]
 fn a_malformed_job_file_renders_nothing() {
-    let dir = scratch("malformed");
+    let dir = scratch("batch", "malformed");
     let jobs = dir.join("jobs.toml");
     let scene = format!("{}/scenes/cornell-paper", env!("CARGO_MANIFEST_DIR"));
     std::fs::write(&jobs, format!("[[job]]\nscene = \"{scene}\"\noutput = \"a.exr\"\nsamples = 4\n")).unwrap();

@@ -2,31 +2,12 @@
 //! into pixels (and variances) bit-identical to one render of all the samples, for the path
 //! tracer and for the learned integrator (whose parts each recompute the same training); parts
 //! that overlap, leave a gap or come from different renders are refused.
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+use common::cli::*;
 use zvidpt::film::read_exr;
 
-fn zvidpt(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_zvidpt")).args(args).env_remove("RUST_BACKTRACE").output().expect("binary runs")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("zvidpt-merge-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn text(o: &Output) -> String {
-    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
 fn split_and_merge(integrator: &str, spp: u32, ranges: &[(u32, u32)]) {
-    let dir = scratch(integrator);
+    let dir = scratch("merge", integrator);
     let scene = format!("{}/scenes/cornell-paper", env!("CARGO_MANIFEST_DIR"));
     let spp_s = spp.to_string();
     let common = ["--integrator", integrator, "--resolution", "40x30", "--seed", "5", "--spp", &spp_s, "-q"];
@@ -78,7 +59,7 @@ fn learned_parts_merge_bit_identically() {
 
 #[test]
 fn wrong_parts_are_refused() {
-    let dir = scratch("refuse");
+    let dir = scratch("merge", "refuse");
     let scene = format!("{}/scenes/cornell-paper", env!("CARGO_MANIFEST_DIR"));
     let part = |name: &str, range: &str, seed: &str| {
         let p = dir.join(name);

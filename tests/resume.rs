@@ -3,36 +3,13 @@
 //! for the path tracer and for the learned integrator (whose pre-pass is rebuilt); SIGTERM and
 //! SIGINT write the checkpoint, leave no temporary file and exit 143 and 130; a rerun of an
 //! interrupted batch continues; a checkpoint of another render is refused.
+mod common;
+use common::cli::*;
 use std::io::{BufRead, BufReader};
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 use zvidpt::film::{read_exr, read_partial};
-
-fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_zvidpt"));
-    c.env_remove("RUST_BACKTRACE");
-    c
-}
-
-fn zvidpt(args: &[&str]) -> Output {
-    bin().args(args).output().expect("binary runs")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("zvidpt-resume-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn text(o: &Output) -> String {
-    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 fn scene() -> String {
     format!("{}/scenes/cornell-paper", env!("CARGO_MANIFEST_DIR"))
@@ -44,12 +21,6 @@ fn assert_same_bits(a: &Path, b: &Path, what: &str) {
     assert_eq!(x.len(), y.len());
     let differ = x.iter().zip(&y).filter(|(p, q)| p != q).count();
     assert_eq!(differ, 0, "{what}: {differ} of {} values differ between {} and {}", x.len(), a.display(), b.display());
-}
-
-/// Pixels and variances as bits.
-fn bits(path: &Path) -> Vec<u32> {
-    let (img, _) = read_exr(path).unwrap();
-    img.pixels.iter().chain(img.variance.as_ref().unwrap()).flat_map(|p| p.map(f32::to_bits)).collect()
 }
 
 /// Files whose names start with a dot (the temporary files of atomic writes).
@@ -96,7 +67,7 @@ fn render_args<'a>(scene: &'a str, integrator: &'a str, spp: &'a str, out: &'a P
 }
 
 fn killed_and_resumed(integrator: &str, spp: &str) {
-    let dir = scratch(&format!("kill-{integrator}"));
+    let dir = scratch("resume", &format!("kill-{integrator}"));
     let scene = scene();
     let whole = dir.join("whole.exr");
     let o = zvidpt(&[&render_args(&scene, integrator, spp, &whole)[..], &["--no-checkpoint"][..]].concat());
@@ -139,7 +110,7 @@ fn learned_killed_and_resumed_is_bit_identical() {
 
 /// Sends `signal` once the render has finished a pass (it says so in a JSON line).
 fn signalled(signal: &str, code: i32) {
-    let dir = scratch(&format!("signal-{signal}"));
+    let dir = scratch("resume", &format!("signal-{signal}"));
     let scene = scene();
     let whole = dir.join("whole.exr");
     let o = zvidpt(&[&render_args(&scene, "path", "1024", &whole)[..], &["--no-checkpoint"][..]].concat());
@@ -185,7 +156,7 @@ fn sigint_writes_the_checkpoint_and_exits_130() {
 
 #[test]
 fn a_checkpoint_continues_only_its_own_render() {
-    let dir = scratch("refuse");
+    let dir = scratch("resume", "refuse");
     let scene = scene();
     let out = dir.join("a.exr");
     let checkpoint = dir.join("a.exr.checkpoint");
@@ -222,7 +193,7 @@ fn a_checkpoint_continues_only_its_own_render() {
 
 #[test]
 fn an_interrupted_batch_continues_when_run_again() {
-    let dir = scratch("batch");
+    let dir = scratch("resume", "batch");
     let scene = scene();
     let jobs = dir.join("jobs.toml");
     let job = |name: &str| {

@@ -3,27 +3,11 @@
 //! one render on this machine, for the path tracer and the learned integrator; `--status`
 //! follows it; a second submission of a finished batch submits nothing. Without `sbatch` on
 //! this machine the test says so and passes without running.
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+use common::cli::*;
+use std::path::PathBuf;
+use std::process::Command;
 use std::time::{Duration, Instant};
-use zvidpt::film::read_exr;
-
-fn zvidpt(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_zvidpt")).args(args).env_remove("RUST_BACKTRACE").output().expect("binary runs")
-}
-
-fn text(o: &Output) -> String {
-    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn bits(path: &Path) -> Vec<u32> {
-    let (img, _) = read_exr(path).unwrap();
-    img.pixels.iter().chain(img.variance.as_ref().unwrap()).flat_map(|p| p.map(f32::to_bits)).collect()
-}
 
 fn has_sbatch() -> bool {
     Command::new("sbatch").arg("--version").output().is_ok_and(|o| o.status.success())

@@ -1,5 +1,6 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
+pub mod cli;
 use zvidpt::accel::{Accel, BvhAccel};
 use zvidpt::film::Image;
 use zvidpt::geometry::{UVec2, Vec3A};

@@ -1,0 +1,38 @@
+//! Helpers for the tests that run the `zvidpt` binary.
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// Runs `zvidpt ARGS` to completion.
+pub fn zvidpt(args: &[&str]) -> Output {
+    bin().args(args).output().expect("binary runs")
+}
+
+/// The `zvidpt` binary as a command (no backtraces in its error lines).
+pub fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_zvidpt"));
+    c.env_remove("RUST_BACKTRACE");
+    c
+}
+
+/// An empty folder `zvidpt-TEST-NAME-PID` in the temporary folder.
+pub fn scratch(test: &str, name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("zvidpt-{test}-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Standard output and error together, for assertion messages.
+pub fn text(o: &Output) -> String {
+    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+}
+
+pub fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// An EXR's pixels and variances as bits.
+pub fn bits(path: &Path) -> Vec<u32> {
+    let (img, _) = zvidpt::film::read_exr(path).unwrap();
+    img.pixels.iter().chain(img.variance.as_ref().unwrap()).flat_map(|p| p.map(f32::to_bits)).collect()
+}
