@@ -45,6 +45,27 @@ pub enum Bsdf {
     /// `thin`: a smooth thin sheet, both surfaces at once (inter-reflections summed; light
     /// passes straight through, unscaled).
     Dielectric { eta: f32, roughness: Option<Ggx>, thin: bool },
+    /// Smooth plastic (Mitsuba's `plastic`): a diffuse base of reflectance `diffuse` under a
+    /// smooth dielectric coat of index `eta`. The coat reflects `F(θi)` as a mirror (a delta
+    /// lobe); the rest enters, scatters diffusely with inter-reflections under the coat
+    /// (internal diffuse Fresnel reflectance `fdr_int`: `ρ/(1 − fdr_int)`, or with
+    /// `nonlinear` `ρ/(1 − ρ·fdr_int)`), and leaves through `1 − F(θo)`, scaled by `1/η²`.
+    /// `specular_share` is the share of [`Bsdf::sample`]'s choices given to the mirror before
+    /// Fresnel weighting.
+    Plastic { diffuse: Vec3A, eta: f32, fdr_int: f32, nonlinear: bool, specular_share: f32 },
+}
+
+/// Diffuse Fresnel reflectance: `2 ∫₀¹ F(μ, eta) μ dμ`, the share of uniformly diffuse light
+/// an interface of relative index `eta` reflects (midpoint rule, 2048 steps: error < 1e-6).
+#[must_use]
+pub fn diffuse_fresnel(eta: f32) -> f32 {
+    let n = 2048;
+    let mut sum = 0.0f64;
+    for i in 0..n {
+        let mu = (i as f32 + 0.5) / n as f32;
+        sum += f64::from(fresnel::dielectric(mu, eta).0 * mu);
+    }
+    (2.0 * sum / f64::from(n)) as f32
 }
 
 /// Mirror `w` about `m`.
@@ -67,6 +88,36 @@ impl Bsdf {
     pub fn dielectric(eta: f32, alpha: f32) -> Self {
         let roughness = (alpha >= Ggx::MIN_ALPHA).then(|| Ggx::new(alpha));
         Bsdf::Dielectric { eta, roughness, thin: false }
+    }
+
+    /// Smooth plastic: diffuse `reflectance` under a coat of index `eta` (Mitsuba's defaults:
+    /// `eta` 1.49, linear).
+    #[must_use]
+    pub fn plastic(reflectance: Vec3A, eta: f32, nonlinear: bool) -> Self {
+        // Mitsuba's choice: the mirror's share by the mean of the specular reflectance (1)
+        // against the diffuse one.
+        let mean = (reflectance.x + reflectance.y + reflectance.z) / 3.0;
+        Bsdf::Plastic {
+            diffuse: reflectance,
+            eta,
+            fdr_int: diffuse_fresnel(1.0 / eta),
+            nonlinear,
+            specular_share: 1.0 / (1.0 + mean),
+        }
+    }
+
+    /// Probability that [`Bsdf::sample`] takes a plastic's mirror at incidence `cos_i`.
+    fn plastic_mirror_probability(eta: f32, specular_share: f32, cos_i: f32) -> f32 {
+        let f = fresnel::dielectric(cos_i, eta).0;
+        let s = f * specular_share;
+        s / (s + (1.0 - f) * (1.0 - specular_share))
+    }
+
+    /// A plastic's diffuse value `f` (no cosine).
+    fn plastic_diffuse(diffuse: Vec3A, eta: f32, fdr_int: f32, nonlinear: bool, wi: Vec3A, wo: Vec3A) -> Vec3A {
+        let (fi, fo) = (fresnel::dielectric(wi.z, eta).0, fresnel::dielectric(wo.z, eta).0);
+        let base = if nonlinear { diffuse / (Vec3A::ONE - diffuse * fdr_int) } else { diffuse / (1.0 - fdr_int) };
+        base * ((1.0 - fi) * (1.0 - fo) * FRAC_1_PI / (eta * eta))
     }
 
     /// Whether every direction it scatters to is a delta lobe (no NEE, no guiding through it).
@@ -100,6 +151,9 @@ impl Bsdf {
         }
         match *self {
             Bsdf::Dielectric { .. } => Vec3A::ZERO,
+            Bsdf::Plastic { diffuse, eta, fdr_int, nonlinear, .. } => {
+                Self::plastic_diffuse(diffuse, eta, fdr_int, nonlinear, wi, wo)
+            }
             Bsdf::Diffuse { reflectance } => reflectance * FRAC_1_PI,
             Bsdf::Conductor { roughness: None, .. } => Vec3A::ZERO,
             Bsdf::Conductor { eta, k, specular, roughness: Some(ggx) } => {
@@ -127,6 +181,9 @@ impl Bsdf {
         }
         match *self {
             Bsdf::Dielectric { .. } => 0.0,
+            Bsdf::Plastic { eta, specular_share, .. } => {
+                (1.0 - Self::plastic_mirror_probability(eta, specular_share, wi.z)) * wo.z * FRAC_1_PI
+            }
             Bsdf::Diffuse { .. } => wo.z * FRAC_1_PI,
             Bsdf::Conductor { roughness: None, .. } => 0.0,
             Bsdf::Conductor { roughness: Some(ggx), .. } => {
@@ -152,6 +209,21 @@ impl Bsdf {
         }
         match *self {
             Bsdf::Dielectric { .. } => None,
+            Bsdf::Plastic { diffuse, eta, fdr_int, nonlinear, specular_share } => {
+                let p = Self::plastic_mirror_probability(eta, specular_share, wi.z);
+                if u_lobe < p {
+                    let f = fresnel::dielectric(wi.z, eta).0;
+                    let wo = Vec3A::new(-wi.x, -wi.y, wi.z);
+                    return Some(BsdfSample { wo, weight: Vec3A::splat(f / p), pdf: 1.0, delta: true });
+                }
+                let wo = crate::geometry::warp::cosine_hemisphere(u);
+                let pdf = (1.0 - p) * wo.z * FRAC_1_PI;
+                if pdf <= 0.0 {
+                    return None;
+                }
+                let f = Self::plastic_diffuse(diffuse, eta, fdr_int, nonlinear, wi, wo);
+                Some(BsdfSample { wo, weight: f * wo.z / pdf, pdf, delta: false })
+            }
             Bsdf::Diffuse { reflectance } => {
                 let wo = crate::geometry::warp::cosine_hemisphere(u);
                 (wo.z > 0.0).then_some(BsdfSample { wo, weight: reflectance, pdf: wo.z * FRAC_1_PI, delta: false })
