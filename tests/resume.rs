@@ -7,7 +7,7 @@ mod common;
 use common::cli::*;
 use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
 use zvidpt::film::{read_exr, read_partial};
 
@@ -130,8 +130,7 @@ fn signalled(signal: &str, code: i32) {
         let line = lines.next().expect("the render reports its passes").unwrap();
         passes += usize::from(line.contains("\"event\":\"pass\""));
     }
-    let kill = Command::new("kill").args([&format!("-{signal}"), &child.id().to_string()]).status().unwrap();
-    assert!(kill.success());
+    send_signal(child.id(), signal);
     let rest: Vec<String> = lines.map(Result::unwrap).collect();
     let status = child.wait().unwrap();
     assert_eq!(status.code(), Some(code), "{signal}: {rest:?}");
@@ -209,8 +208,7 @@ fn an_interrupted_batch_continues_when_run_again() {
     let checkpoint = dir.join("one.exr.checkpoint");
     let mut child = bin().args(["batch", s(&jobs)]).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
     wait_for_checkpoint(&mut child, &checkpoint, 8);
-    let kill = Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap();
-    assert!(kill.success());
+    send_signal(child.id(), "TERM");
     assert_eq!(child.wait().unwrap().code(), Some(143));
     assert!(!dir.join("two.exr").exists(), "no job starts after SIGTERM");
     assert!(!dir.join("summary.csv").exists());

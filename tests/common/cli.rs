@@ -36,3 +36,10 @@ pub fn bits(path: &Path) -> Vec<u32> {
     let (img, _) = zvidpt::film::read_exr(path).unwrap();
     img.pixels.iter().chain(img.variance.as_ref().unwrap()).flat_map(|p| p.map(f32::to_bits)).collect()
 }
+
+/// Sends `signal` (`TERM`, `INT`, …) to process `pid` through the shell's `kill` builtin
+/// (`/bin/kill` comes from procps, which a minimal Debian lacks; `sh` is always there).
+pub fn send_signal(pid: u32, signal: &str) {
+    let status = Command::new("sh").arg("-c").arg(format!("kill -{signal} {pid}")).status().expect("sh runs");
+    assert!(status.success(), "kill -{signal} {pid} failed");
+}
