@@ -81,9 +81,10 @@ fn bad(path: &Path, key: &str) -> Error {
     }
 }
 
-/// Whether `path` holds a checkpoint (read whole: for the command line's checks).
+/// Whether `path` holds a checkpoint (its header alone is read: the command line checks this
+/// before reading a resumed checkpoint whole).
 pub fn is_checkpoint(path: &Path) -> bool {
-    film::read_partial(path).is_ok_and(|(_, m)| m.get(MARK).is_some())
+    film::read_partial_header(path).is_ok_and(|(_, m)| m.get(MARK).is_some())
 }
 
 /// What a checkpoint records besides its sums.

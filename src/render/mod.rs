@@ -122,10 +122,11 @@ struct Tile<S> {
 }
 
 impl<S: Send + Sync> Tile<S> {
-    fn pixels(&self) -> impl Iterator<Item = (usize, UVec2)> + '_ {
-        (0..self.size.y).flat_map(move |y| {
-            (0..self.size.x).map(move |x| ((y * self.size.x + x) as usize, self.origin + UVec2::new(x, y)))
-        })
+    /// (index in the tile, pixel) of every pixel; borrows nothing, so the tile's sums can be
+    /// written while iterating.
+    fn pixels(&self) -> impl Iterator<Item = (usize, UVec2)> + use<S> {
+        let (origin, size) = (self.origin, self.size);
+        (0..size.y).flat_map(move |y| (0..size.x).map(move |x| ((y * size.x + x) as usize, origin + UVec2::new(x, y))))
     }
 
     fn run_pass<A: Accel, I: Integrator<PixelState = S>>(
@@ -284,12 +285,9 @@ fn render_in_pool<A: Accel, I: Integrator>(
         }
         let sums = &r.part.sums;
         tiles.par_iter_mut().for_each(|tile| {
-            let (origin, size) = (tile.origin, tile.size);
-            for y in 0..size.y {
-                for x in 0..size.x {
-                    let (i, j) = ((y * size.x + x) as usize, ((origin.y + y) * width + origin.x + x) as usize);
-                    (tile.sum[i], tile.sum_sq[i]) = (sums.sum[j], sums.sum_sq[j]);
-                }
+            for (i, p) in tile.pixels() {
+                let j = (p.y * width + p.x) as usize;
+                (tile.sum[i], tile.sum_sq[i]) = (sums.sum[j], sums.sum_sq[j]);
             }
         });
         done += sums.spp;
