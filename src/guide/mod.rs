@@ -16,8 +16,9 @@
 //! photon positions, each cell's directions seeded from the indirect photons inside it and its
 //! estimates from its nearest photons. Then each training iteration samples from the guide
 //! frozen at the end of the previous one and deposits into a fresh copy whose quadtrees were
-//! refined where the previous one found energy. Deposits are fixed-point integers added
-//! atomically, so what is learned is bit-identical whatever the thread count and tile order.
+//! refined where the previous one found energy. Deposits are fixed-point integers, summed per
+//! worker ([`Deposits`]) and then over workers: integer addition is associative, so what is
+//! learned is bit-identical whatever the thread count and tile order.
 pub mod quadtree;
 
 use crate::geometry::{Frame, Vec2, Vec3A, warp};
@@ -27,7 +28,6 @@ use crate::scene::Scene;
 use quadtree::{Forest, from_fixed, to_fixed};
 use rayon::prelude::*;
 use std::f32::consts::{FRAC_1_PI, PI};
-use std::sync::atomic::{AtomicU64, Ordering};
 
 /// A quadrant holding more than this fraction of its tree's energy is split (PPG's ρ is 0.01).
 /// 0.02 on cornell-paper at 32 spp (seeds 1, 2): MSE×s 0.184 against 0.217 at 0.01 (0.005:
@@ -90,12 +90,48 @@ struct SpatialNode {
 
 /// Per cell and iteration: sample count, position sums and squares (fixed point, relative to
 /// the scene's lower corner) — where the cell's samples are, to split it where they spread.
-type Spread = [AtomicU64; 7];
+type Spread = [u64; 7];
 
-/// A tree being filled: the topology plus one fixed-point accumulator per quadrant.
-struct Filling {
-    forest: Forest,
-    acc: Vec<AtomicU64>,
+/// What walks deposit during one training iteration, in fixed point: one worker's share, or
+/// (after [`Deposits::merge`]) everyone's. Each worker fills its own, so deposits cost no
+/// atomic operations (on `cornell-paper` atomics made a training sample about 20% dearer
+/// than a final one), and the sums are the same bits however the work was split.
+#[derive(Clone, Debug, Default)]
+pub struct Deposits {
+    /// Per quadrant of the trees being filled: energy at `8·node + 2q`, count at `+ 1`.
+    acc: Vec<u64>,
+    /// Per cell: direct RGB, indirect RGB, samples.
+    sums: Vec<[u64; 7]>,
+    spread: Vec<Spread>,
+    /// Per cell: the second-moment estimates of [`MIX_CANDIDATES`].
+    moments: Vec<[u64; MIX_CANDIDATES.len()]>,
+}
+
+impl Deposits {
+    /// Adds `other` into `self` (wrapping, as fixed-point sums may).
+    #[must_use]
+    pub fn merge(mut self, other: Self) -> Self {
+        fn add<const N: usize>(to: &mut [[u64; N]], from: &[[u64; N]]) {
+            for (a, b) in to.iter_mut().zip(from) {
+                for (x, y) in a.iter_mut().zip(b) {
+                    *x = x.wrapping_add(*y);
+                }
+            }
+        }
+        if self.acc.is_empty() && self.sums.is_empty() {
+            return other;
+        }
+        if other.acc.is_empty() && other.sums.is_empty() {
+            return self;
+        }
+        for (x, y) in self.acc.iter_mut().zip(&other.acc) {
+            *x = x.wrapping_add(*y);
+        }
+        add(&mut self.sums, &other.sums);
+        add(&mut self.spread, &other.spread);
+        add(&mut self.moments, &other.moments);
+        self
+    }
 }
 
 pub struct LearnedGuide {
@@ -108,15 +144,14 @@ pub struct LearnedGuide {
     estimates: Vec<CellEstimate>,
     /// Whether a cell's estimates mean anything (photons or samples reached it).
     known: Vec<bool>,
-    filling: Option<Filling>,
+    /// The trees being filled (during an iteration): the frozen ones, refined.
+    filling: Option<Forest>,
     /// Per cell, summed over iterations: direct RGB, indirect RGB (fixed point), samples.
-    sums: Vec<[AtomicU64; 7]>,
-    spread: Vec<Spread>,
-    /// Per cell: the probability of sampling its tree (the rest: cosine sampling), and this
-    /// iteration's estimates of the second moment of a direction's weight for each candidate
-    /// in [`MIX_CANDIDATES`].
+    sums: Vec<[u64; 7]>,
+    /// Per cell: the probability of sampling its tree (the rest: cosine sampling), chosen by
+    /// each iteration's estimates of the second moment of a direction's weight for each
+    /// candidate in [`MIX_CANDIDATES`].
     mix: Vec<f32>,
-    moments: Vec<[AtomicU64; MIX_CANDIDATES.len()]>,
     /// Whether the mixture probability is learned (or stays at its initial value).
     pub learn_mix: bool,
     /// Samples a cell must have received in an iteration to be split.
@@ -146,10 +181,6 @@ const MIN_HIGH_MIX_SAMPLES: u64 = 1024;
 const MIX_SWITCH_GAIN: f64 = 1.0;
 const MIN_MIX_SAMPLES: u64 = 64;
 
-fn fresh<const N: usize>(n: usize) -> Vec<[AtomicU64; N]> {
-    (0..n).map(|_| std::array::from_fn(|_| AtomicU64::new(0))).collect()
-}
-
 impl LearnedGuide {
     /// The first guide, from the photon map: space split until a cell holds about
     /// [`PHOTONS_PER_CELL`] photons, directions from the indirect photons in each cell,
@@ -176,9 +207,7 @@ impl LearnedGuide {
             known: Vec::new(),
             filling: None,
             sums: Vec::new(),
-            spread: Vec::new(),
             mix: Vec::new(),
-            moments: Vec::new(),
             learn_mix: false,
             split_samples: 4000,
             carry: 0.25,
@@ -190,10 +219,10 @@ impl LearnedGuide {
         // Split by photon positions until no cell holds more than PHOTONS_PER_CELL photons.
         let mut cells = BUCKETS;
         for _round in 0..MAX_SPATIAL_DEPTH {
-            let spread = fresh::<7>(cells);
+            let mut spread = vec![[0u64; 7]; cells];
             for i in 0..map.len() {
                 let c = guide.cell(map.position(i), map.normal[i]);
-                add_spread(&spread[c], map.position(i) - guide.origin);
+                add_spread(&mut spread[c], map.position(i) - guide.origin);
             }
             let before = cells;
             cells = guide.split_cells(&spread, PHOTONS_PER_CELL, cells)?;
@@ -229,7 +258,7 @@ impl LearnedGuide {
                     }
                 }
                 for round in 0..3 {
-                    let acc: Vec<AtomicU64> = (0..8 * tree.nodes.len()).map(|_| AtomicU64::new(0)).collect();
+                    let mut acc = vec![0u64; 8 * tree.nodes.len()];
                     // A photon's flux is `L·cos·dω`; the cosine warp's `dω = π/cos·du·dv`, so
                     // flux summed per leaf is `π∫L du dv`, as the walks deposit.
                     for &i in photons.iter().filter(|&&i| map.bounce[i] > 0) {
@@ -238,8 +267,8 @@ impl LearnedGuide {
                             continue;
                         }
                         let (node, q) = tree.leaf_of(0, warp::cosine_hemisphere_inverse(local));
-                        acc[8 * node + 2 * q].fetch_add(to_fixed(map.flux[i].element_sum() as f64), Ordering::Relaxed);
-                        acc[8 * node + 2 * q + 1].fetch_add(1, Ordering::Relaxed);
+                        acc[8 * node + 2 * q] += to_fixed(map.flux[i].element_sum() as f64);
+                        acc[8 * node + 2 * q + 1] += 1;
                     }
                     tree.freeze_tree(0, &acc);
                     if round < 2 {
@@ -256,8 +285,7 @@ impl LearnedGuide {
             guide.known.push(*known);
             tree.copy_into(0, &mut guide.trees);
         }
-        guide.sums = fresh::<7>(cells);
-        guide.spread = fresh::<7>(cells);
+        guide.sums = vec![[0; 7]; cells];
         guide.mix = vec![0.5; cells];
         Ok(guide)
     }
@@ -323,15 +351,7 @@ impl LearnedGuide {
                 }
                 // An unsplit cell keeps its sums; parts start afresh (keeping the parent's
                 // estimates until they have their own).
-                let sums = fresh::<7>(parent_of.len());
-                for (i, &p) in parent_of.iter().enumerate() {
-                    if children[p] == 1 {
-                        for (to, from) in sums[i].iter().zip(&self.sums[p]) {
-                            to.store(from.load(Ordering::Relaxed), Ordering::Relaxed);
-                        }
-                    }
-                }
-                self.sums = sums;
+                self.sums = parent_of.iter().map(|&p| if children[p] == 1 { self.sums[p] } else { [0; 7] }).collect();
             }
         }
         Ok(parent_of.len())
@@ -389,7 +409,8 @@ impl LearnedGuide {
 
     #[must_use]
     pub fn stats(&self) -> GuideStats {
-        let fill = self.filling.as_ref().map_or(0, |f| f.forest.bytes() + f.acc.len() * 8);
+        // The trees being filled, and one worker's accumulators for them.
+        let fill = self.filling.as_ref().map_or(0, |f| f.bytes() + f.nodes.len() * 64);
         GuideStats {
             cells: self.cells(),
             nodes: self.trees.nodes.len(),
@@ -407,10 +428,22 @@ impl LearnedGuide {
         for t in 0..self.trees.len() {
             self.trees.refine_into(t, SPLIT_THRESHOLD, MIN_LEAF_SAMPLES, &mut forest);
         }
-        let acc = (0..8 * forest.nodes.len()).map(|_| AtomicU64::new(0)).collect();
-        self.filling = Some(Filling { forest, acc });
-        self.spread = fresh::<7>(self.cells());
-        self.moments = fresh::<{ MIX_CANDIDATES.len() }>(self.cells());
+        self.filling = Some(forest);
+    }
+
+    /// Empty accumulators for one worker's deposits in this iteration (none outside one).
+    #[must_use]
+    pub fn deposits(&self) -> Deposits {
+        let Some(forest) = &self.filling else {
+            return Deposits::default();
+        };
+        let cells = self.cells();
+        Deposits {
+            acc: vec![0; 8 * forest.nodes.len()],
+            sums: vec![[0; 7]; cells],
+            spread: vec![[0; 7]; cells],
+            moments: vec![[0; MIX_CANDIDATES.len()]; cells],
+        }
     }
 
     /// Whether an iteration is running (walks deposit only then).
@@ -424,11 +457,12 @@ impl LearnedGuide {
     /// over channels) arriving at `cell`. In the cosine-warped square this sums to `∫f·Lr`
     /// over each leaf: the tree's density becomes `f·cos·Lr` per steradian.
     #[inline]
-    pub fn deposit_direction(&self, cell: usize, w: Vec3A, value: f32) {
+    pub fn deposit_direction(&self, d: &mut Deposits, cell: usize, w: Vec3A, value: f32) {
         if let Some(f) = &self.filling {
-            let (node, q) = f.forest.leaf_of(cell, warp::cosine_hemisphere_inverse(w));
-            f.acc[8 * node + 2 * q].fetch_add(to_fixed(value as f64), Ordering::Relaxed);
-            f.acc[8 * node + 2 * q + 1].fetch_add(1, Ordering::Relaxed);
+            let (node, q) = f.leaf_of(cell, warp::cosine_hemisphere_inverse(w));
+            let i = 8 * node + 2 * q;
+            d.acc[i] = d.acc[i].wrapping_add(to_fixed(value as f64));
+            d.acc[i + 1] += 1;
         }
     }
 
@@ -448,57 +482,68 @@ impl LearnedGuide {
     /// is `g` (`f·cos·Lr`, summed over channels), drawn with density `p_drawn`, where the tree
     /// has density `p_tree` and cosine sampling `p_cos`.
     #[inline]
-    pub fn deposit_moments(&self, cell: usize, g: f32, p_drawn: f32, p_tree: f32, p_cos: f32) {
+    pub fn deposit_moments(&self, d: &mut Deposits, cell: usize, g: f32, p_drawn: f32, p_tree: f32, p_cos: f32) {
         if self.filling.is_none() || !self.learn_mix || !(g > 0.0 && p_drawn > 0.0) {
             return;
         }
-        for (m, a) in self.moments[cell].iter().zip(MIX_CANDIDATES) {
+        for (m, a) in d.moments[cell].iter_mut().zip(MIX_CANDIDATES) {
             let p = a * p_tree + (1.0 - a) * p_cos;
-            m.fetch_add(to_fixed(f64::from(g) * f64::from(g) / (f64::from(p) * f64::from(p_drawn))), Ordering::Relaxed);
+            *m = m.wrapping_add(to_fixed(f64::from(g) * f64::from(g) / (f64::from(p) * f64::from(p_drawn))));
         }
     }
 
     /// Records one vertex at `p` and its estimates of outgoing direct and indirect radiance.
     #[inline]
-    pub fn deposit_estimates(&self, cell: usize, p: Vec3A, direct: Vec3A, indirect: Vec3A) {
+    pub fn deposit_estimates(&self, d: &mut Deposits, cell: usize, p: Vec3A, direct: Vec3A, indirect: Vec3A) {
         if self.filling.is_none() || !(direct.is_finite() && indirect.is_finite()) {
             return;
         }
-        let s = &self.sums[cell];
+        let s = &mut d.sums[cell];
         for c in 0..3 {
-            s[c].fetch_add(to_fixed(direct[c] as f64), Ordering::Relaxed);
-            s[3 + c].fetch_add(to_fixed(indirect[c] as f64), Ordering::Relaxed);
+            s[c] = s[c].wrapping_add(to_fixed(direct[c] as f64));
+            s[3 + c] = s[3 + c].wrapping_add(to_fixed(indirect[c] as f64));
         }
-        s[6].fetch_add(1, Ordering::Relaxed);
-        add_spread(&self.spread[cell], p - self.origin);
+        s[6] += 1;
+        add_spread(&mut d.spread[cell], p - self.origin);
     }
 
-    /// Ends the iteration `k` (0 first): cells that learned enough sample from what they
-    /// learned, the others keep their tree; estimates average every iteration's samples so
-    /// far; cells that received more than `split_samples·√(2^k)` samples are split.
-    pub fn end_iteration(&mut self, k: u32) -> crate::Result<()> {
+    /// Ends the iteration `k` (0 first) with everything its walks deposited: cells that
+    /// learned enough sample from what they learned, the others keep their tree; estimates
+    /// average every iteration's samples so far; cells that received more than
+    /// `split_samples·√(2^k)` samples are split.
+    pub fn end_iteration(&mut self, k: u32, deposits: Deposits) -> crate::Result<()> {
         let Some(mut filling) = self.filling.take() else {
             return Ok(());
         };
+        let cells = self.cells();
+        let Deposits { acc, sums, spread, moments } = deposits;
+        if acc.len() != 8 * filling.nodes.len() || sums.len() != cells {
+            return Err(crate::Error::InvalidOption("deposits of another training iteration".into()));
+        }
         // Earlier iterations' directional data carry over with weight `carry` per deposit
         // (compounding: `carry^j` for the iteration j back), the photon seed's do not (its
         // trees hold photon flux of indirect light only).
         let carry = if k > 0 { self.carry } else { 0.0 };
         let mut trees = Forest::default();
         for t in 0..self.trees.len() {
-            filling.forest.freeze_tree_blended(t, &filling.acc, carry);
-            let samples = self.spread[t][0].load(Ordering::Relaxed);
-            if samples >= MIN_TREE_SAMPLES && filling.forest.total(t) > 0.0 {
-                filling.forest.copy_into(t, &mut trees);
+            filling.freeze_tree_blended(t, &acc, carry);
+            let samples = spread[t][0];
+            if samples >= MIN_TREE_SAMPLES && filling.total(t) > 0.0 {
+                filling.copy_into(t, &mut trees);
             } else {
                 self.trees.copy_into(t, &mut trees);
             }
         }
         self.trees = trees;
+        for (total, new) in self.sums.iter_mut().zip(&sums) {
+            for (x, y) in total.iter_mut().zip(new) {
+                *x = x.wrapping_add(*y);
+            }
+        }
         for ((e, known), s) in self.estimates.iter_mut().zip(&mut self.known).zip(&self.sums) {
-            let n = s[6].load(Ordering::Relaxed);
+            let n = s[6];
             if n >= MIN_SAMPLES {
-                let mean = |c: usize| (from_fixed(s[c].load(Ordering::Relaxed)) / n as f64) as f32;
+                let mean = |c: usize| (from_fixed(s[c]) / n as f64) as f32;
                 e.direct = Vec3A::new(mean(0), mean(1), mean(2));
                 e.indirect = Vec3A::new(mean(3), mean(4), mean(5));
                 e.from_walks = true;
@@ -506,10 +551,10 @@ impl LearnedGuide {
             }
         }
         if self.learn_mix {
-            for ((mix, m), s) in self.mix.iter_mut().zip(&self.moments).zip(&self.spread) {
-                let samples = s[0].load(Ordering::Relaxed);
+            for ((mix, m), s) in self.mix.iter_mut().zip(&moments).zip(&spread) {
+                let samples = s[0];
                 if samples >= MIN_MIX_SAMPLES {
-                    let moment = |i: usize| m[i].load(Ordering::Relaxed);
+                    let moment = |i: usize| m[i];
                     let open =
                         if samples >= MIN_HIGH_MIX_SAMPLES { MIX_CANDIDATES.len() } else { MIX_CANDIDATES.len() - 1 };
                     let best = (0..open).min_by_key(|&i| moment(i)).unwrap_or(2);
@@ -522,8 +567,6 @@ impl LearnedGuide {
             }
         }
         let limit = (self.split_samples as f64 * 2f64.powf(k as f64 * 0.5)) as u64;
-        let spread = std::mem::take(&mut self.spread);
-        let cells = self.cells();
         self.split_cells(&spread, limit, cells)?;
         Ok(())
     }
@@ -545,12 +588,12 @@ struct Plan {
 
 impl Plan {
     fn from_spread(s: &Spread, origin: Vec3A) -> Option<Self> {
-        let count = s[0].load(Ordering::Relaxed);
+        let count = s[0];
         if count == 0 {
             return None;
         }
-        let mean = |a: usize| from_fixed(s[1 + a].load(Ordering::Relaxed)) / count as f64;
-        let var = |a: usize| (from_fixed(s[4 + a].load(Ordering::Relaxed)) / count as f64 - mean(a).powi(2)).max(0.0);
+        let mean = |a: usize| from_fixed(s[1 + a]) / count as f64;
+        let var = |a: usize| (from_fixed(s[4 + a]) / count as f64 - mean(a).powi(2)).max(0.0);
         let mut axes = [0usize, 1, 2];
         axes.sort_by(|&a, &b| var(b).total_cmp(&var(a)));
         let [a, b, _] = axes;
@@ -582,12 +625,12 @@ impl Plan {
     }
 }
 
-fn add_spread(s: &Spread, p: Vec3A) {
-    s[0].fetch_add(1, Ordering::Relaxed);
+fn add_spread(s: &mut Spread, p: Vec3A) {
+    s[0] += 1;
     for a in 0..3 {
         let x = p[a].max(0.0) as f64;
-        s[1 + a].fetch_add(to_fixed(x), Ordering::Relaxed);
-        s[4 + a].fetch_add(to_fixed(x * x), Ordering::Relaxed);
+        s[1 + a] = s[1 + a].wrapping_add(to_fixed(x));
+        s[4 + a] = s[4 + a].wrapping_add(to_fixed(x * x));
     }
 }
 

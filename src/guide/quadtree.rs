@@ -7,12 +7,11 @@
 //! in the map); PPG's world-space sphere map instead wastes samples below a curved surface's
 //! horizon and cannot follow the cosine of each point of a cell.
 //!
-//! All trees of a guide live in one flat node array (`Forest`). A tree being *filled* holds
-//! one atomic fixed-point accumulator per leaf quadrant, so deposits from any number of
-//! threads sum to the same bits in any order (integer addition is associative); a *frozen*
-//! tree holds each quadrant's energy as `f32` for sampling and its pdf.
+//! All trees of a guide live in one flat node array (`Forest`). A tree being *filled* has
+//! a fixed-point accumulator per leaf quadrant (kept apart by each worker and summed after
+//! the pass, so the sums are the same bits in any order: integer addition is associative);
+//! a *frozen* tree holds each quadrant's energy as `f32` for sampling and its pdf.
 use crate::geometry::Vec2;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Deepest level a quadrant may reach (a leaf of depth 12 spans 1/4096 of the square's side,
 /// about 0.05° of azimuth: finer than any light here needs, and within `f32`'s precision
@@ -193,7 +192,7 @@ impl Forest {
 
     /// Fills `energy` and `samples` of every node of tree `t` from the leaf accumulators:
     /// energy at `acc[8·node + 2q]`, deposit count at `acc[8·node + 2q + 1]`.
-    pub fn freeze_tree(&mut self, t: usize, acc: &[AtomicU64]) {
+    pub fn freeze_tree(&mut self, t: usize, acc: &[u64]) {
         self.freeze_tree_blended(t, acc, 0.0);
     }
 
@@ -202,14 +201,14 @@ impl Forest {
     /// normalised per deposit, then averaged with weights `deposits` and `carry · prior
     /// deposits`: with `carry` = 1 the tree is learned from every iteration's deposits alike,
     /// in whatever units the prior was (photon flux for the seed).
-    pub fn freeze_tree_blended(&mut self, t: usize, acc: &[AtomicU64], carry: f32) {
-        fn fill(nodes: &mut [Node], acc: &[AtomicU64], n: usize, blend: Option<(f32, f32)>) -> (f32, u32) {
+    pub fn freeze_tree_blended(&mut self, t: usize, acc: &[u64], carry: f32) {
+        fn fill(nodes: &mut [Node], acc: &[u64], n: usize, blend: Option<(f32, f32)>) -> (f32, u32) {
             let (mut total, mut count) = (0.0, 0u32);
             for q in 0..4 {
                 let c = nodes[n].child[q] as usize;
                 let (e, k) = if c == 0 {
-                    let k = acc[8 * n + 2 * q + 1].load(Ordering::Relaxed).min(u32::MAX as u64) as u32;
-                    let e = from_fixed(acc[8 * n + 2 * q].load(Ordering::Relaxed)) as f32;
+                    let k = acc[8 * n + 2 * q + 1].min(u32::MAX as u64) as u32;
+                    let e = from_fixed(acc[8 * n + 2 * q]) as f32;
                     match blend {
                         // (energy scale, deposit weight) of the prior.
                         Some((scale, weight)) => {
@@ -238,8 +237,8 @@ impl Forest {
                 for q in 0..4 {
                     match self.nodes[n].child[q] {
                         0 => {
-                            energy += from_fixed(acc[8 * n + 2 * q].load(Ordering::Relaxed));
-                            count += acc[8 * n + 2 * q + 1].load(Ordering::Relaxed);
+                            energy += from_fixed(acc[8 * n + 2 * q]);
+                            count += acc[8 * n + 2 * q + 1];
                         }
                         c => stack.push(c as usize),
                     }
@@ -342,12 +341,12 @@ mod tests {
         let mut rng = SampleStream::in_domain(Domain::Photon, 7, 0, 0);
         let target = |p: Vec2| 0.05 + (-((p - Vec2::new(0.3, 0.7)).length_squared()) * 400.0).exp() * 50.0;
         for round in 0..4 {
-            let acc: Vec<AtomicU64> = (0..8 * forest.nodes.len()).map(|_| AtomicU64::new(0)).collect();
+            let mut acc = vec![0u64; 8 * forest.nodes.len()];
             for _ in 0..20000 {
                 let p = rng.next_2d();
                 let (n, q) = forest.leaf_of(0, p);
-                acc[8 * n + 2 * q].fetch_add(to_fixed(target(p) as f64), Ordering::Relaxed);
-                acc[8 * n + 2 * q + 1].fetch_add(1, Ordering::Relaxed);
+                acc[8 * n + 2 * q] += to_fixed(target(p) as f64);
+                acc[8 * n + 2 * q + 1] += 1;
             }
             forest.freeze_tree(0, &acc);
             if round < 3 {
@@ -397,11 +396,11 @@ mod tests {
     #[test]
     fn copy_keeps_topology_and_energy() {
         let mut forest = Forest::flat(2);
-        let acc: Vec<AtomicU64> = (0..16).map(|_| AtomicU64::new(0)).collect();
-        acc[8].fetch_add(to_fixed(3.0), Ordering::Relaxed);
-        acc[9].fetch_add(1000, Ordering::Relaxed);
-        acc[14].fetch_add(to_fixed(1.0), Ordering::Relaxed);
-        acc[15].fetch_add(1000, Ordering::Relaxed);
+        let mut acc = vec![0u64; 16];
+        acc[8] += to_fixed(3.0);
+        acc[9] += 1000;
+        acc[14] += to_fixed(1.0);
+        acc[15] += 1000;
         forest.freeze_tree(1, &acc);
         let mut refined = Forest::default();
         forest.refine_into(1, 0.01, 8, &mut refined);
@@ -419,19 +418,19 @@ mod tests {
     #[test]
     fn carry_blends_shapes_by_deposits() {
         let mut old = Forest::flat(1);
-        let acc: Vec<AtomicU64> = (0..8).map(|_| AtomicU64::new(0)).collect();
+        let mut acc = vec![0u64; 8];
         // Old: all energy in quadrant 0 (100 units over 100 deposits).
-        acc[0].fetch_add(to_fixed(100.0), Ordering::Relaxed);
-        acc[1].fetch_add(100, Ordering::Relaxed);
+        acc[0] += to_fixed(100.0);
+        acc[1] += 100;
         old.freeze_tree(0, &acc);
         // A threshold above 1 keeps one node; quadrant 0's prior is the old energy.
         let mut new = Forest::default();
         old.refine_into(0, 2.0, 1, &mut new);
         assert_eq!(new.nodes[0].energy, [100.0, 0.0, 0.0, 0.0]);
         // New: all energy in quadrant 3, 1 unit per deposit over 300 deposits.
-        let acc: Vec<AtomicU64> = (0..8).map(|_| AtomicU64::new(0)).collect();
-        acc[6].fetch_add(to_fixed(300.0), Ordering::Relaxed);
-        acc[7].fetch_add(300, Ordering::Relaxed);
+        let mut acc = vec![0u64; 8];
+        acc[6] += to_fixed(300.0);
+        acc[7] += 300;
         let mut blended = new.clone();
         blended.freeze_tree_blended(0, &acc, 0.5);
         // Shapes weighted 300 : 0.5·100 → quadrant 0 holds 50/350 of the density.

@@ -25,7 +25,7 @@ use super::{Integrator, PriorSamples, RenderContext, Scratch, direct_light};
 use crate::Result;
 use crate::accel::Accel;
 use crate::geometry::{Frame, UVec2, Vec3A, luminance, warp};
-use crate::guide::{LearnedGuide, mixture_pdf};
+use crate::guide::{Deposits, LearnedGuide, mixture_pdf};
 use crate::photon::PhotonMap;
 use crate::sampler::{Domain, SampleStream};
 use crate::scene::SurfaceInteraction;
@@ -200,6 +200,7 @@ impl LearnedZvidpt {
         branches: u32,
         rng: &mut SampleStream,
         scratch: &mut Scratch,
+        mut deposits: Option<&mut Deposits>,
     ) -> Vec3A {
         let albedo = si.material.diffuse;
         if albedo == Vec3A::ZERO {
@@ -219,7 +220,7 @@ impl LearnedZvidpt {
         if n > 0 {
             let frame = Frame::from_normal(si.n);
             let alpha = guide.mix(cell);
-            let learning = guide.learning();
+            let learning = deposits.is_some();
             for _ in 0..n {
                 let u_pick = rng.next_f32();
                 let u_dir = rng.next_2d();
@@ -255,16 +256,17 @@ impl LearnedZvidpt {
                             branches * n,
                             rng,
                             scratch,
+                            deposits.as_deref_mut(),
                         )
                     }
                     None => Vec3A::ZERO,
                 };
                 indirect += throughput * li;
-                if learning {
+                if let Some(d) = deposits.as_deref_mut() {
                     // The zero-variance target f·cos·Lr: Σ_channels (ρ/π·Lr)·cos / pdf.
                     let g = (albedo * li).element_sum() * cos * FRAC_1_PI;
-                    guide.deposit_direction(cell, local, g / pdf);
-                    guide.deposit_moments(cell, g, pdf, learned, cos * FRAC_1_PI);
+                    guide.deposit_direction(d, cell, local, g / pdf);
+                    guide.deposit_moments(d, cell, g, pdf, learned, cos * FRAC_1_PI);
                 }
             }
         }
@@ -280,7 +282,9 @@ impl LearnedZvidpt {
             _ => Vec3A::ZERO,
         };
         let indirect = cv + (indirect - cv * n as f32) / f;
-        guide.deposit_estimates(cell, si.p, direct, indirect);
+        if let Some(d) = deposits {
+            guide.deposit_estimates(d, cell, si.p, direct, indirect);
+        }
         direct + indirect
     }
 
@@ -310,7 +314,8 @@ impl LearnedZvidpt {
         (sum / SETUP_RAYS as f32).max(1e-4)
     }
 
-    /// One camera sample: emission seen directly, plus the walk's estimate of `Lr`.
+    /// One camera sample: emission seen directly, plus the walk's estimate of `Lr`
+    /// (depositing what it learns into `deposits` in a training iteration).
     #[allow(clippy::too_many_arguments)]
     fn camera_sample<A: Accel>(
         &self,
@@ -320,6 +325,7 @@ impl LearnedZvidpt {
         reference: f32,
         rng: &mut SampleStream,
         scratch: &mut Scratch,
+        deposits: Option<&mut Deposits>,
     ) -> Vec3A {
         let ray = ctx.scene.camera.ray(pixel.as_vec2() + rng.pixel_2d());
         scratch.rays += 1;
@@ -327,45 +333,69 @@ impl LearnedZvidpt {
             return Vec3A::ZERO;
         };
         let si = ctx.scene.interaction(&ray, &hit);
-        si.emitted() + self.reflected(ctx, guide, &si, Vec3A::ONE, reference, 0, 1, rng, scratch)
+        si.emitted() + self.reflected(ctx, guide, &si, Vec3A::ONE, reference, 0, 1, rng, scratch, deposits)
     }
 
-    /// One training iteration over the whole image at `spp`, depositing into the guide;
-    /// returns each pixel's sums and sums of squares (row-major).
+    /// One training iteration over the whole image at `spp`; returns what its walks
+    /// deposited, and each pixel's sums and sums of squares (row-major).
     fn train_pass<A: Accel>(
         &self,
         ctx: &RenderContext<A>,
         guide: &LearnedGuide,
         seed: u64,
         spp: u32,
-    ) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+    ) -> (Deposits, Vec<[f64; 3]>, Vec<[f64; 3]>) {
+        type Row = Vec<([f64; 3], [f64; 3])>;
         let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
-        let rows: Vec<Vec<([f64; 3], [f64; 3])>> = (0..height)
+        // Each worker deposits into its own accumulators, summed afterwards (integer sums:
+        // the same bits however rayon split the rows).
+        let (deposits, mut rows) = (0..height)
             .into_par_iter()
-            .map(|y| {
-                let mut scratch = Scratch::default();
-                let mut row = Vec::new();
-                for x in 0..width {
-                    let pixel = UVec2::new(x, y);
-                    let reference = self.pixel_reference(ctx, guide, pixel, seed, &mut scratch);
-                    let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
-                    // Iteration k takes samples 2^k .. 2^(k+1) of the pixel's sequence (an
-                    // aligned block: stratified by itself, and with the others).
-                    for s in spp..2 * spp {
-                        let mut rng = SampleStream::new(seed, y * width + x, s);
-                        let v = self.camera_sample(ctx, guide, pixel, reference, &mut rng, &mut scratch);
-                        let v = if v.is_finite() { v } else { Vec3A::ZERO };
-                        for c in 0..3 {
-                            sum[c] += f64::from(v[c]);
-                            sum_sq[c] += f64::from(v[c]) * f64::from(v[c]);
+            .with_min_len(4)
+            .fold(
+                || (guide.deposits(), Vec::<(u32, Row)>::new()),
+                |(mut deposits, mut rows), y| {
+                    let mut scratch = Scratch::default();
+                    let mut row = Vec::new();
+                    for x in 0..width {
+                        let pixel = UVec2::new(x, y);
+                        let reference = self.pixel_reference(ctx, guide, pixel, seed, &mut scratch);
+                        let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
+                        // Iteration k takes samples 2^k .. 2^(k+1) of the pixel's sequence (an
+                        // aligned block: stratified by itself, and with the others).
+                        for s in spp..2 * spp {
+                            let mut rng = SampleStream::new(seed, y * width + x, s);
+                            let v = self.camera_sample(
+                                ctx,
+                                guide,
+                                pixel,
+                                reference,
+                                &mut rng,
+                                &mut scratch,
+                                Some(&mut deposits),
+                            );
+                            let v = if v.is_finite() { v } else { Vec3A::ZERO };
+                            for c in 0..3 {
+                                sum[c] += f64::from(v[c]);
+                                sum_sq[c] += f64::from(v[c]) * f64::from(v[c]);
+                            }
                         }
+                        row.push((sum, sum_sq));
                     }
-                    row.push((sum, sum_sq));
-                }
-                row
-            })
-            .collect();
-        rows.into_iter().flatten().unzip()
+                    rows.push((y, row));
+                    (deposits, rows)
+                },
+            )
+            .reduce(
+                || (Deposits::default(), Vec::new()),
+                |(a, mut rows), (b, more)| {
+                    rows.extend(more);
+                    (a.merge(b), rows)
+                },
+            );
+        rows.sort_unstable_by_key(|r| r.0);
+        let (sum, sum_sq) = rows.into_iter().flat_map(|r| r.1).unzip();
+        (deposits, sum, sum_sq)
     }
 }
 
@@ -422,8 +452,8 @@ impl Integrator for LearnedZvidpt {
             }
             let t = Instant::now();
             guide.begin_iteration();
-            let (sum, sum_sq) = self.train_pass(ctx, &guide, seed, spp);
-            guide.end_iteration(k)?;
+            let (deposits, sum, sum_sq) = self.train_pass(ctx, &guide, seed, spp);
+            guide.end_iteration(k, deposits)?;
             prior.add_pass(spp, &sum, &sum_sq);
             self.iterations.push(Iteration { spp, seconds: t.elapsed().as_secs_f64() });
         }
@@ -468,6 +498,6 @@ impl Integrator for LearnedZvidpt {
         scratch: &mut Scratch,
     ) -> Vec3A {
         let guide = self.guide.as_ref().expect("prepare() builds the guide");
-        self.camera_sample(ctx, guide, pixel, *reference, rng, scratch)
+        self.camera_sample(ctx, guide, pixel, *reference, rng, scratch, None)
     }
 }
