@@ -77,8 +77,8 @@ fn learned_integrators_agree_with_path_reference() {
 }
 
 /// The same bits whatever the thread count and tile size: training deposits are fixed-point
-/// integers summed atomically, so the learned guide, and so the image, cannot depend on the
-/// order in which threads reach it.
+/// integers, summed per worker and then over workers, so the learned guide, and so the image,
+/// cannot depend on how the work was split or in which order threads reach it.
 #[test]
 fn learning_is_deterministic_across_threads_and_tiles() {
     let scene = scene_at("cornell-paper", 64, 48);

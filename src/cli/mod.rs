@@ -205,6 +205,10 @@ pub struct PhotonArgs {
     /// compounds per iteration).
     #[arg(long, default_value_t = 0.25)]
     pub guide_carry: f32,
+    /// zvidpt: fraction of directions aimed at a uniform point of the box each guide cell
+    /// learned its light comes from (where it learned one; 0: off).
+    #[arg(long, default_value_t = 0.3)]
+    pub box_mix: f32,
     /// zvidpt: weight-window width s (no roulette or split while the expected contribution
     /// ratio lies in [2/(1+s), 2s/(1+s)]).
     #[arg(long, default_value_t = 5.0)]
@@ -243,6 +247,7 @@ impl PhotonArgs {
             guide_mix: 0.75,
             learn_mix: Switch::On,
             guide_carry: 0.25,
+            box_mix: 0.3,
             window: 5.0,
             max_split: 8,
             roulette_cv: Switch::On,
@@ -259,6 +264,7 @@ impl PhotonArgs {
             guide_mix: self.guide_mix,
             learn_mix: self.learn_mix == Switch::On,
             guide_carry: self.guide_carry,
+            box_mix: self.box_mix,
             roulette,
             window: self.window,
             max_split: self.max_split,
@@ -312,6 +318,9 @@ impl PhotonArgs {
         if !(self.guide_carry.is_finite() && (0.0..=1.0).contains(&self.guide_carry)) {
             return Err(Error::InvalidOption("--guide-carry must lie in [0, 1]".into()));
         }
+        if !(self.box_mix >= 0.0 && self.box_mix < 1.0) {
+            return Err(Error::InvalidOption("--box-mix must lie in [0, 1)".into()));
+        }
         if !(self.window.is_finite() && self.window >= 1.0) {
             return Err(Error::InvalidOption("--window must be a number of at least 1".into()));
         }
@@ -344,6 +353,7 @@ impl PhotonArgs {
             meta.push("guide_mix", self.guide_mix);
             meta.push("learn_mix", flag_name(self.learn_mix));
             meta.push("guide_carry", self.guide_carry);
+            meta.push("box_mix", self.box_mix);
             meta.push("window", self.window);
             meta.push("max_split", self.max_split);
             meta.push("roulette_cv", flag_name(self.roulette_cv));

@@ -45,6 +45,17 @@ const MAX_SPATIAL_DEPTH: u32 = 40;
 const MIN_TREE_SAMPLES: u64 = 64;
 /// A cell's learned estimates replace its photon seed once it has this many samples.
 const MIN_SAMPLES: u64 = 16;
+/// Thinnest side of a source box, as a fraction of the scene's extent (a box around a flat
+/// patch needs some thickness to have a volume).
+const MIN_BOX_SIDE: f32 = 1e-3;
+/// Largest side of a source box, as a fraction of the scene's extent.
+const MAX_SOURCE_SIDE: f32 = 0.5;
+/// Most source boxes a scene gets.
+pub const MAX_SOURCES: usize = 4;
+/// A cell whose radiance is at least this fraction of the brightest cell's is a source.
+const SOURCE_RADIANCE: f32 = 0.1;
+/// A cell aims at a source box only if it brought it at least this share of its energy.
+const MIN_SOURCE_SHARE: f64 = 0.1;
 /// Photons per cell when the first tree is split by photon positions.
 const PHOTONS_PER_CELL: u64 = 200;
 /// Deposits a quadrant needs before it is refined (training; photon seed).
@@ -103,8 +114,11 @@ pub struct Deposits {
     /// Per cell: direct RGB, indirect RGB, samples.
     sums: Vec<[u64; 7]>,
     spread: Vec<Spread>,
-    /// Per cell: the second-moment estimates of [`MIX_CANDIDATES`].
-    moments: Vec<[u64; MIX_CANDIDATES.len()]>,
+    /// Per cell: the second-moment estimates of each pair of [`MIX_CANDIDATES`] and
+    /// [`BOX_CANDIDATES`] (index `i·BOX_CANDIDATES.len() + j`).
+    moments: Vec<[u64; MOMENTS]>,
+    /// Per cell: the energy its directions brought from inside each source box, and in all.
+    sources: Vec<[u64; MAX_SOURCES + 1]>,
 }
 
 impl Deposits {
@@ -130,7 +144,67 @@ impl Deposits {
         add(&mut self.sums, &other.sums);
         add(&mut self.spread, &other.spread);
         add(&mut self.moments, &other.moments);
+        add(&mut self.sources, &other.sources);
         self
+    }
+}
+
+/// A box in world space that a cell's light comes from (learned from where its walks found
+/// energy), for a parallax-free mixture component: a uniform point in the box gives a
+/// direction from any shading point of the cell, so a bright patch seen from across the room
+/// is aimed at wherever in the cell the walk is (a directional tree averages its direction
+/// over the cell). The density of that direction is known in closed form: the box is convex,
+/// so a ray from `x` crosses it over one segment `[t0, t1]`, and `p(ω) = ∫ t² dt / V`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SourceBox {
+    pub lo: Vec3A,
+    pub hi: Vec3A,
+    inv_volume: f32,
+}
+
+impl SourceBox {
+    /// The box `[lo, hi]`; `None` unless it has positive, finite volume.
+    #[must_use]
+    pub fn new(lo: Vec3A, hi: Vec3A) -> Option<Self> {
+        let volume = (hi - lo).x * (hi - lo).y * (hi - lo).z;
+        let inv_volume = 1.0 / volume;
+        (volume > 0.0 && inv_volume.is_finite() && lo.is_finite() && hi.is_finite()).then_some(Self {
+            lo,
+            hi,
+            inv_volume,
+        })
+    }
+
+    #[inline]
+    #[must_use]
+    pub fn contains(&self, p: Vec3A) -> bool {
+        p.cmpge(self.lo).all() && p.cmple(self.hi).all()
+    }
+
+    /// The direction from `x` to the point of the box at `u` (uniform in the unit cube).
+    #[inline]
+    #[must_use]
+    pub fn sample(&self, x: Vec3A, u: Vec3A) -> Option<Vec3A> {
+        (self.lo + (self.hi - self.lo) * u - x).try_normalize()
+    }
+
+    /// The density per steradian of [`Self::sample`]'s direction `d` (unit) from `x`.
+    #[inline]
+    #[must_use]
+    pub fn pdf(&self, x: Vec3A, d: Vec3A) -> f32 {
+        // Components of exactly 0 (a set of measure zero) become tiny, so the slab test
+        // never computes 0·∞.
+        let d = Vec3A::select(d.abs().cmplt(Vec3A::splat(1e-20)), Vec3A::splat(1e-20), d);
+        let inv = d.recip();
+        let (ta, tb) = ((self.lo - x) * inv, (self.hi - x) * inv);
+        let t0 = ta.min(tb).max_element().max(0.0);
+        let t1 = ta.max(tb).min_element();
+        if t1 > t0 {
+            // (t1³ − t0³)/3, factored so that a thin box far away keeps its precision.
+            (t1 - t0) * (t1 * t1 + t1 * t0 + t0 * t0) * (self.inv_volume / 3.0)
+        } else {
+            0.0
+        }
     }
 }
 
@@ -146,6 +220,16 @@ pub struct LearnedGuide {
     known: Vec<bool>,
     /// The trees being filled (during an iteration): the frozen ones, refined.
     filling: Option<Forest>,
+    /// The scene's extent (largest side of its bounds).
+    extent: f32,
+    /// Bright patches that light the scene (from the photon seed), which cells may aim at.
+    pub sources: Vec<SourceBox>,
+    /// Per cell: the source box it aims at (index + 1; 0: none), and the probability of
+    /// aiming at it (starting at `box_mix`, then learned with the tree's).
+    cell_source: Vec<u8>,
+    box_share: Vec<f32>,
+    /// Probability of aiming at a cell's source box (where it has one).
+    pub box_mix: f32,
     /// Per cell, summed over iterations: direct RGB, indirect RGB (fixed point), samples.
     sums: Vec<[u64; 7]>,
     /// Per cell: the probability of sampling its tree (the rest: cosine sampling), chosen by
@@ -172,6 +256,10 @@ pub struct LearnedGuide {
 /// two seeds. Gated, it lowers cornell-paper's MSE at 32 spp by 5–10% (0.0173/0.0159 against
 /// 0.0181/0.0177 at seeds 1/2).
 pub const MIX_CANDIDATES: [f32; 5] = [0.0, 0.25, 0.5, 0.75, 0.9];
+/// The source-box probabilities a cell with a source box chooses from, the same way (in the
+/// furnace, where cosine sampling is exact, cells choose 0).
+pub const BOX_CANDIDATES: [f32; 4] = [0.0, 0.15, 0.3, 0.5];
+const MOMENTS: usize = MIX_CANDIDATES.len() * BOX_CANDIDATES.len();
 /// Directions a cell needs in an iteration before it may choose the last (highest) candidate.
 const MIN_HIGH_MIX_SAMPLES: u64 = 1024;
 /// A cell changes its probability only when another candidate's estimated second moment is
@@ -198,8 +286,14 @@ impl LearnedGuide {
         }
         // Positions in the spread sums are taken relative to a corner just below the scene.
         let origin = lo - Vec3A::splat(1e-3 * (hi - lo).max_element().max(1e-3));
+        let extent = ((hi - origin).max_element() * 1.001).max(1e-3);
         let mut guide = Self {
             origin,
+            extent,
+            sources: Vec::new(),
+            cell_source: Vec::new(),
+            box_share: Vec::new(),
+            box_mix: 0.0,
             nodes: Vec::new(),
             roots: [0; BUCKETS],
             trees: Forest::default(),
@@ -218,6 +312,7 @@ impl LearnedGuide {
         }
         // Split by photon positions until no cell holds more than PHOTONS_PER_CELL photons.
         let mut cells = BUCKETS;
+        let mut last_spread = Vec::new();
         for _round in 0..MAX_SPATIAL_DEPTH {
             let mut spread = vec![[0u64; 7]; cells];
             for i in 0..map.len() {
@@ -226,6 +321,7 @@ impl LearnedGuide {
             }
             let before = cells;
             cells = guide.split_cells(&spread, PHOTONS_PER_CELL, cells)?;
+            last_spread = spread;
             if cells == before {
                 break;
             }
@@ -286,8 +382,80 @@ impl LearnedGuide {
             tree.copy_into(0, &mut guide.trees);
         }
         guide.sums = vec![[0; 7]; cells];
+        guide.cell_source = vec![0; cells];
+        guide.box_share = vec![0.0; cells];
+        guide.sources = guide.find_sources(&last_spread);
         guide.mix = vec![0.5; cells];
         Ok(guide)
+    }
+
+    /// The bright patches that light the scene, from the photon seed: cells whose radiance
+    /// estimate is at least [`SOURCE_RADIANCE`] of the brightest's, each as the box of its
+    /// photons (mean ± √3 standard deviations per axis: a uniform box of the same spread),
+    /// boxes that touch merged, the [`MAX_SOURCES`] strongest kept (radiance × area).
+    /// `spread` must describe the current cells (the last round of splitting found nothing
+    /// to split).
+    fn find_sources(&self, spread: &[Spread]) -> Vec<SourceBox> {
+        if spread.len() != self.cells() {
+            return Vec::new();
+        }
+        let radiance: Vec<f32> = (0..self.cells())
+            .map(|c| {
+                if self.known[c] && spread[c][0] >= MIN_LEAF_PHOTONS as u64 {
+                    crate::geometry::luminance(self.estimates[c].direct + self.estimates[c].indirect)
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let top = radiance.iter().copied().fold(0.0f32, f32::max);
+        if !(top > 0.0 && top.is_finite()) {
+            return Vec::new();
+        }
+        let pad = MIN_BOX_SIDE * self.extent;
+        // (box lo, box hi, strength)
+        let mut boxes: Vec<(Vec3A, Vec3A, f32)> = Vec::new();
+        for (c, s) in spread.iter().enumerate() {
+            if radiance[c] < SOURCE_RADIANCE * top {
+                continue;
+            }
+            let n = s[0] as f64;
+            let (mut lo, mut hi) = (Vec3A::ZERO, Vec3A::ZERO);
+            for a in 0..3 {
+                let mean = from_fixed(s[1 + a]) / n;
+                let sd = (from_fixed(s[4 + a]) / n - mean * mean).max(0.0).sqrt();
+                let half = ((3f64.sqrt() * sd) as f32).max(0.5 * pad);
+                lo[a] = self.origin[a] + mean as f32 - half;
+                hi[a] = self.origin[a] + mean as f32 + half;
+            }
+            let side = hi - lo;
+            let area = (side.x * side.y).max(side.y * side.z).max(side.z * side.x);
+            boxes.push((lo, hi, radiance[c] * area));
+        }
+        // Merge boxes that touch (within a percent of the extent) until none do.
+        let touch = 0.01 * self.extent;
+        loop {
+            let mut merged = false;
+            'outer: for i in 0..boxes.len() {
+                for j in i + 1..boxes.len() {
+                    let (a, b) = (boxes[i], boxes[j]);
+                    if (a.0 - touch).cmple(b.1).all() && (b.0 - touch).cmple(a.1).all() {
+                        boxes[i] = (a.0.min(b.0), a.1.max(b.1), a.2 + b.2);
+                        boxes.swap_remove(j);
+                        merged = true;
+                        break 'outer;
+                    }
+                }
+            }
+            if !merged {
+                break;
+            }
+        }
+        // A bright region as large as half the scene is no patch to aim at (in a furnace,
+        // everything is equally bright): directions there are the tree's business.
+        boxes.retain(|b| (b.1 - b.0).max_element() <= MAX_SOURCE_SIDE * self.extent);
+        boxes.sort_by(|a, b| b.2.total_cmp(&a.2));
+        boxes.into_iter().take(MAX_SOURCES).filter_map(|(lo, hi, _)| SourceBox::new(lo, hi)).collect()
     }
 
     /// Splits every cell whose `spread` count exceeds `limit`: at the samples' mean along the
@@ -345,6 +513,8 @@ impl LearnedGuide {
                 self.estimates = parent_of.iter().map(|&p| self.estimates[p]).collect();
                 self.known = parent_of.iter().map(|&p| self.known[p]).collect();
                 self.mix = parent_of.iter().map(|&p| self.mix[p]).collect();
+                self.cell_source = parent_of.iter().map(|&p| self.cell_source[p]).collect();
+                self.box_share = parent_of.iter().map(|&p| self.box_share[p]).collect();
                 let mut children = vec![0u32; cells];
                 for &p in &parent_of {
                     children[p] += 1;
@@ -442,7 +612,8 @@ impl LearnedGuide {
             acc: vec![0; 8 * forest.nodes.len()],
             sums: vec![[0; 7]; cells],
             spread: vec![[0; 7]; cells],
-            moments: vec![[0; MIX_CANDIDATES.len()]; cells],
+            moments: vec![[0; MOMENTS]; cells],
+            sources: vec![[0; MAX_SOURCES + 1]; cells],
         }
     }
 
@@ -482,14 +653,67 @@ impl LearnedGuide {
     /// is `g` (`f·cos·Lr`, summed over channels), drawn with density `p_drawn`, where the tree
     /// has density `p_tree` and cosine sampling `p_cos`.
     #[inline]
-    pub fn deposit_moments(&self, d: &mut Deposits, cell: usize, g: f32, p_drawn: f32, p_tree: f32, p_cos: f32) {
+    #[allow(clippy::too_many_arguments)]
+    pub fn deposit_moments(
+        &self,
+        d: &mut Deposits,
+        cell: usize,
+        g: f32,
+        p_drawn: f32,
+        p_tree: f32,
+        p_cos: f32,
+        p_box: Option<f32>,
+    ) {
         if self.filling.is_none() || !self.learn_mix || !(g > 0.0 && p_drawn > 0.0) {
             return;
         }
-        for (m, a) in d.moments[cell].iter_mut().zip(MIX_CANDIDATES) {
-            let p = a * p_tree + (1.0 - a) * p_cos;
-            *m = m.wrapping_add(to_fixed(f64::from(g) * f64::from(g) / (f64::from(p) * f64::from(p_drawn))));
+        // Without a box only the β = 0 candidates can be estimated.
+        let boxes = if p_box.is_some() { BOX_CANDIDATES.len() } else { 1 };
+        let p_box = p_box.unwrap_or(0.0);
+        let m = &mut d.moments[cell];
+        for (i, a) in MIX_CANDIDATES.into_iter().enumerate() {
+            let mixture = a * p_tree + (1.0 - a) * p_cos;
+            for (j, b) in BOX_CANDIDATES.into_iter().enumerate().take(boxes) {
+                let p = b * p_box + (1.0 - b) * mixture;
+                let k = i * BOX_CANDIDATES.len() + j;
+                m[k] = m[k].wrapping_add(to_fixed(f64::from(g) * f64::from(g) / (f64::from(p) * f64::from(p_drawn))));
+            }
         }
+    }
+
+    /// Records that a direction from `cell` brought energy `value` (as deposited in its tree)
+    /// from the point `y`.
+    #[inline]
+    pub fn deposit_source(&self, d: &mut Deposits, cell: usize, y: Vec3A, value: f32) {
+        if self.filling.is_none() || !(value > 0.0) || self.sources.is_empty() {
+            return;
+        }
+        let e = to_fixed(f64::from(value));
+        let s = &mut d.sources[cell];
+        s[MAX_SOURCES] = s[MAX_SOURCES].wrapping_add(e);
+        for (k, b) in self.sources.iter().enumerate() {
+            if b.contains(y) {
+                s[k] = s[k].wrapping_add(e);
+            }
+        }
+    }
+
+    /// The box `cell`'s light comes from, if learned and in use.
+    #[inline]
+    #[must_use]
+    pub fn source_box(&self, cell: usize) -> Option<&SourceBox> {
+        match self.cell_source[cell] {
+            0 => None,
+            k if self.box_mix > 0.0 => self.sources.get(k as usize - 1),
+            _ => None,
+        }
+    }
+
+    /// The probability of aiming at `cell`'s source box (where it has one).
+    #[inline]
+    #[must_use]
+    pub fn box_share(&self, cell: usize) -> f32 {
+        self.box_share[cell]
     }
 
     /// Records one vertex at `p` and its estimates of outgoing direct and indirect radiance.
@@ -516,7 +740,7 @@ impl LearnedGuide {
             return Ok(());
         };
         let cells = self.cells();
-        let Deposits { acc, sums, spread, moments } = deposits;
+        let Deposits { acc, sums, spread, moments, sources } = deposits;
         if acc.len() != 8 * filling.nodes.len() || sums.len() != cells {
             return Err(crate::Error::InvalidOption("deposits of another training iteration".into()));
         }
@@ -551,19 +775,52 @@ impl LearnedGuide {
             }
         }
         if self.learn_mix {
-            for ((mix, m), s) in self.mix.iter_mut().zip(&moments).zip(&spread) {
+            let nb = BOX_CANDIDATES.len();
+            for (cell, (m, s)) in moments.iter().zip(&spread).enumerate() {
                 let samples = s[0];
-                if samples >= MIN_MIX_SAMPLES {
-                    let moment = |i: usize| m[i];
-                    let open =
-                        if samples >= MIN_HIGH_MIX_SAMPLES { MIX_CANDIDATES.len() } else { MIX_CANDIDATES.len() - 1 };
-                    let best = (0..open).min_by_key(|&i| moment(i)).unwrap_or(2);
-                    // Switch only for a clear gain: the moments are noisy estimates.
-                    let current = MIX_CANDIDATES.iter().position(|&a| a == *mix);
-                    if current.is_none_or(|c| (moment(best) as f64) < MIX_SWITCH_GAIN * moment(c) as f64) {
-                        *mix = MIX_CANDIDATES[best];
+                if samples < MIN_MIX_SAMPLES {
+                    continue;
+                }
+                let open =
+                    if samples >= MIN_HIGH_MIX_SAMPLES { MIX_CANDIDATES.len() } else { MIX_CANDIDATES.len() - 1 };
+                // Box candidates only for a cell that sampled its box in this iteration.
+                let boxes = if self.source_box(cell).is_some() { nb } else { 1 };
+                let candidates = (0..open).flat_map(|i| (0..boxes).map(move |j| i * nb + j));
+                let Some(best) = candidates.min_by_key(|&k| m[k]) else {
+                    continue;
+                };
+                // Switch only for a clear gain: the moments are noisy estimates.
+                let current = MIX_CANDIDATES
+                    .iter()
+                    .position(|&a| a == self.mix[cell])
+                    .zip(BOX_CANDIDATES.iter().position(|&b| b == self.box_share[cell]).filter(|&j| j < boxes))
+                    .map(|(i, j)| i * nb + j);
+                if current.is_none_or(|c| (m[best] as f64) < MIX_SWITCH_GAIN * m[c] as f64) {
+                    self.mix[cell] = MIX_CANDIDATES[best / nb];
+                    if boxes > 1 {
+                        self.box_share[cell] = BOX_CANDIDATES[best % nb];
                     }
                 }
+            }
+        }
+        let had_box: Vec<bool> = (0..cells).map(|c| self.source_box(c).is_some()).collect();
+        // Each cell aims at the source box that brought it the most energy, if that was at
+        // least MIN_SOURCE_SHARE of all it received (from enough directions).
+        for ((c, e), n) in self.cell_source.iter_mut().zip(&sources).zip(&spread) {
+            if n[0] < MIN_TREE_SAMPLES || e[MAX_SOURCES] == 0 {
+                continue;
+            }
+            let best = (0..MAX_SOURCES).max_by_key(|&k| (e[k], std::cmp::Reverse(k))).unwrap_or(0);
+            *c = if (e[best] as f64) >= MIN_SOURCE_SHARE * e[MAX_SOURCES] as f64 && e[best] > 0 {
+                best as u8 + 1
+            } else {
+                0
+            };
+        }
+        // A cell that gets its first box starts from `box_mix`.
+        for (share, (&c, &before)) in self.box_share.iter_mut().zip(self.cell_source.iter().zip(&had_box)) {
+            if c != 0 && !before {
+                *share = self.box_mix;
             }
         }
         let limit = (self.split_samples as f64 * 2f64.powf(k as f64 * 0.5)) as u64;
@@ -646,6 +903,57 @@ pub fn mixture_pdf(alpha: f32, learned_pdf: f32, cos_theta: f32) -> f32 {
 mod tests {
     use super::*;
     use crate::accel::BvhAccel;
+
+    /// A source box's direction density is normalised over the sphere (uniform directions:
+    /// E[4π·p] = 1) and is the density its samples have (E_p[1/p] = the solid angle the box
+    /// subtends, which uniform directions measure independently), from outside and inside.
+    /// 10⁶ samples each; from outside, 13% of uniform directions meet the box, so the
+    /// relative standard errors are about 0.3%; tolerance 1.5% (5 standard errors).
+    #[test]
+    fn source_box_pdf_is_the_density_of_its_directions() {
+        let b = SourceBox::new(Vec3A::new(-0.25, 0.9, -0.2), Vec3A::new(0.25, 1.2, 0.2)).unwrap();
+        let mut rng = crate::sampler::SampleStream::in_domain(crate::sampler::Domain::Photon, 3, 0, 0);
+        for x in [Vec3A::new(0.1, 0.6, 0.1), Vec3A::new(0.0, 1.0, 0.0)] {
+            let n = 1_000_000;
+            let (mut integral, mut hits, mut inv) = (0.0f64, 0u64, 0.0f64);
+            for _ in 0..n {
+                let u = rng.next_2d();
+                let (z, phi) = (1.0 - 2.0 * u.x, 2.0 * PI * u.y);
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let d = Vec3A::new(r * phi.cos(), r * phi.sin(), z);
+                let p = b.pdf(x, d);
+                integral += 4.0 * std::f64::consts::PI * f64::from(p) / f64::from(n);
+                hits += u64::from(p > 0.0);
+                let u = Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+                let w = b.sample(x, u).unwrap();
+                let q = b.pdf(x, w);
+                assert!(q > 0.0, "a sampled direction has density {q}");
+                inv += 1.0 / f64::from(q) / f64::from(n);
+            }
+            let omega = 4.0 * std::f64::consts::PI * hits as f64 / f64::from(n);
+            eprintln!("from {x}: ∫p = {integral}, E[1/p] = {inv}, Ω = {omega}");
+            assert!((integral - 1.0).abs() < 0.015, "from {x}: ∫p = {integral}");
+            assert!((inv / omega - 1.0).abs() < 0.015, "from {x}: E[1/p] = {inv}, Ω = {omega}");
+        }
+        // A direction that misses the box has no density; a degenerate box is refused.
+        assert_eq!(b.pdf(Vec3A::ZERO, Vec3A::NEG_Y), 0.0);
+        assert!(SourceBox::new(Vec3A::ZERO, Vec3A::new(1.0, 0.0, 1.0)).is_none());
+    }
+
+    /// On cornell-paper the photon seed finds one bright patch: the ceiling above the light
+    /// (which emits up), thin, covering the light's footprint.
+    #[test]
+    fn the_source_is_the_ceiling_above_the_light() {
+        let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell-paper")).unwrap();
+        let accel = BvhAccel::build(&scene);
+        let map = PhotonMap::build(&scene, &accel, 6891, 1).unwrap();
+        let guide = LearnedGuide::seed(&scene, &map, 50).unwrap();
+        assert_eq!(guide.sources.len(), 1, "{:?}", guide.sources);
+        let b = guide.sources[0];
+        assert!(b.contains(Vec3A::new(0.0, 1.0, 0.0)) && b.hi.y - b.lo.y < 0.01, "{b:?}");
+        assert!(b.lo.x < -0.25 && b.hi.x > 0.25 && b.lo.z < -0.2 && b.hi.z > 0.2, "{b:?}");
+        assert!(b.hi.x - b.lo.x < 1.2 && b.hi.z - b.lo.z < 1.2, "{b:?}");
+    }
 
     #[test]
     fn cells_follow_the_photons_and_seeds_point_at_the_bright_ceiling() {

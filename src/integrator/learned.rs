@@ -77,6 +77,8 @@ pub struct LearnedSettings {
     pub max_split: u32,
     /// Roulette around the learned `L̃ind` (a stopped walk returns it) instead of around 0.
     pub control_variate: bool,
+    /// Probability of aiming at a cell's learned source box (where it has one).
+    pub box_mix: f32,
     /// Training samples per pixel in all (iterations 1, 2, 4, … while they fit); `None`: half
     /// the final sample count, or by the time budget's rule under `--time`.
     pub train_spp: Option<u32>,
@@ -95,6 +97,7 @@ impl Default for LearnedSettings {
             window: 5.0,
             max_split: 8,
             control_variate: true,
+            box_mix: 0.3,
             train_spp: None,
         }
     }
@@ -221,31 +224,50 @@ impl LearnedZvidpt {
             let frame = Frame::from_normal(si.n);
             let alpha = guide.mix(cell);
             let learning = deposits.is_some();
+            let tree = alpha > 0.0 || (learning && guide.has_tree(cell));
+            // The source box, sampled first with probability `beta`; else the mixture of the
+            // tree (`alpha`) and cosine sampling.
+            let source = guide.source_box(cell).copied();
+            let beta = if source.is_some() { guide.box_share(cell) } else { 0.0 };
             for _ in 0..n {
                 let u_pick = rng.next_f32();
                 let u_dir = rng.next_2d();
                 // Local directions (z = normal); the learned density from the leaf a guided
-                // direction came from, or looked up for a cosine one.
-                let (local, learned) = if u_pick < alpha {
-                    guide.sample(cell, u_dir)
-                } else {
-                    let w = warp::cosine_hemisphere(u_dir);
-                    let tree = alpha > 0.0 || (learning && guide.has_tree(cell));
-                    (w, if tree { guide.pdf(cell, w) } else { 0.0 })
+                // direction came from, or looked up otherwise.
+                let (local, wi, learned) = match source {
+                    Some(b) if u_pick < beta => {
+                        let Some(wi) = b.sample(si.p, Vec3A::new(u_dir.x, u_dir.y, u_pick / beta)) else {
+                            continue;
+                        };
+                        let local = frame.to_local(wi);
+                        (local, wi, if tree && local.z > 0.0 { guide.pdf(cell, local) } else { 0.0 })
+                    }
+                    _ => {
+                        let u_pick = (u_pick - beta) / (1.0 - beta);
+                        let (local, learned) = if u_pick < alpha {
+                            guide.sample(cell, u_dir)
+                        } else {
+                            let w = warp::cosine_hemisphere(u_dir);
+                            (w, if tree { guide.pdf(cell, w) } else { 0.0 })
+                        };
+                        (local, frame.to_world(local), learned)
+                    }
                 };
                 let cos = local.z;
                 if cos <= 0.0 {
                     continue;
                 }
-                let wi = frame.to_world(local);
-                let pdf = mixture_pdf(alpha, learned, cos);
+                let box_pdf = source.map_or(0.0, |b| b.pdf(si.p, wi));
+                let pdf = beta * box_pdf + (1.0 - beta) * mixture_pdf(alpha, learned, cos);
                 // f·cosθ/pdf for a Lambertian surface.
                 let throughput = albedo * (cos * FRAC_1_PI / pdf);
                 let ray = si.spawn_ray(wi);
                 scratch.rays += 1;
+                let mut source_point = None;
                 let li = match ctx.accel.intersect(&ray) {
                     Some(hit) => {
                         let next = ctx.scene.interaction(&ray, &hit);
+                        source_point = Some(next.p);
                         self.reflected(
                             ctx,
                             guide,
@@ -266,7 +288,10 @@ impl LearnedZvidpt {
                     // The zero-variance target f·cos·Lr: Σ_channels (ρ/π·Lr)·cos / pdf.
                     let g = (albedo * li).element_sum() * cos * FRAC_1_PI;
                     guide.deposit_direction(d, cell, local, g / pdf);
-                    guide.deposit_moments(d, cell, g, pdf, learned, cos * FRAC_1_PI);
+                    guide.deposit_moments(d, cell, g, pdf, learned, cos * FRAC_1_PI, source.map(|_| box_pdf));
+                    if let Some(y) = source_point {
+                        guide.deposit_source(d, cell, y, g / pdf);
+                    }
                 }
             }
         }
@@ -417,6 +442,7 @@ impl Integrator for LearnedZvidpt {
         guide.set_mix(self.settings.guide_mix);
         guide.learn_mix = self.settings.learn_mix;
         guide.carry = self.settings.guide_carry;
+        guide.box_mix = self.settings.box_mix;
         let seeded = start.elapsed().as_secs_f64();
         drop(map);
         self.iterations.clear();
