@@ -80,11 +80,19 @@ pub struct GuideStats {
     pub cells: usize,
     pub nodes: usize,
     pub bytes: usize,
+    /// Source boxes, and the cells that aim at one.
+    pub sources: usize,
+    pub aiming: usize,
 }
 
 impl std::fmt::Display for GuideStats {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{} cells, {} direction nodes, {:.1} MB", self.cells, self.nodes, self.bytes as f64 / 1e6)
+        write!(f, "{} cells, {} direction nodes, {:.1} MB", self.cells, self.nodes, self.bytes as f64 / 1e6)?;
+        if self.sources > 0 {
+            let s = if self.sources == 1 { "" } else { "es" };
+            write!(f, "; {} source box{s}, aimed at by {} cells", self.sources, self.aiming)?;
+        }
+        Ok(())
     }
 }
 
@@ -588,6 +596,8 @@ impl LearnedGuide {
                 + fill
                 + self.nodes.len() * std::mem::size_of::<SpatialNode>()
                 + self.cells() * (std::mem::size_of::<CellEstimate>() + 1 + 2 * 7 * 8),
+            sources: self.sources.len(),
+            aiming: (0..self.cells()).filter(|&c| self.source_box(c).is_some() && self.box_share[c] > 0.0).count(),
         }
     }
 
@@ -685,7 +695,7 @@ impl LearnedGuide {
     /// from the point `y`.
     #[inline]
     pub fn deposit_source(&self, d: &mut Deposits, cell: usize, y: Vec3A, value: f32) {
-        if self.filling.is_none() || !(value > 0.0) || self.sources.is_empty() {
+        if self.filling.is_none() || value.is_nan() || value <= 0.0 || self.sources.is_empty() {
             return;
         }
         let e = to_fixed(f64::from(value));
@@ -749,9 +759,9 @@ impl LearnedGuide {
         // trees hold photon flux of indirect light only).
         let carry = if k > 0 { self.carry } else { 0.0 };
         let mut trees = Forest::default();
-        for t in 0..self.trees.len() {
+        for (t, s) in spread.iter().enumerate() {
             filling.freeze_tree_blended(t, &acc, carry);
-            let samples = spread[t][0];
+            let samples = s[0];
             if samples >= MIN_TREE_SAMPLES && filling.total(t) > 0.0 {
                 filling.copy_into(t, &mut trees);
             } else {
