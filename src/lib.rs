@@ -18,6 +18,7 @@ pub mod fuzzing;
 pub mod geometry;
 pub mod guide;
 pub mod integrator;
+pub mod light;
 pub mod material;
 pub mod photon;
 pub mod plot;

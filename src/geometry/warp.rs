@@ -152,6 +152,17 @@ impl Discrete {
         (i, self.pmf[i])
     }
 
+    /// As [`Self::sample`], also returning `u` rescaled to be uniform again within the
+    /// picked item's interval (for use as a further number).
+    #[inline]
+    #[must_use]
+    pub fn sample_reusing(&self, u: f32) -> (usize, f32, f32) {
+        let (i, p) = self.sample(u);
+        let below = if i == 0 { 0.0 } else { self.cdf[i - 1] };
+        let rest = if p > 0.0 { ((u - below) / (self.cdf[i] - below)).clamp(0.0, 1.0 - f32::EPSILON) } else { 0.5 };
+        (i, p, rest)
+    }
+
     #[inline]
     #[must_use]
     pub fn pmf(&self, i: usize) -> f32 {
