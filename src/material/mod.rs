@@ -13,6 +13,7 @@
 //! `pdf`, weights, reciprocity, energy).
 pub mod fresnel;
 pub mod microfacet;
+pub mod texture;
 
 use crate::geometry::{Vec2, Vec3A};
 use microfacet::Ggx;
