@@ -1,7 +1,7 @@
 use glam::Vec3A;
 
 /// An orthonormal frame around a unit normal `n` (Duff et al. 2017, branchless).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Frame {
     pub s: Vec3A,
     pub t: Vec3A,
