@@ -1,6 +1,6 @@
 //! Loading a scene: the TOML file, its OBJ/MTL meshes, and every check that turns bad input
 //! into an error naming the file (and line, where the parser knows it).
-use super::description::{MaterialDescription, SceneDescription};
+use super::description::{MaterialDescription, SceneDescription, ShapeDescription, ShapeKind};
 use super::{Camera, Material, Scene};
 use crate::geometry::Vec3A;
 use crate::{Error, Result};
@@ -185,6 +185,9 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
         };
         load_obj(&obj_path, override_id, mesh.reverse_winding, &mut meshes)?;
     }
+    for (k, shape) in d.shapes.iter().enumerate() {
+        add_shape(path, k, shape, &mut meshes)?;
+    }
     let Meshes { materials, triangles, triangle_material, findings, .. } = meshes;
     if triangles.is_empty() {
         return Err(invalid(path, "the scene has no (non-degenerate) triangles"));
@@ -213,6 +216,105 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
         Scene::from_parts(name, path.to_path_buf(), camera, triangles, triangle_material, materials, warnings);
     scene.sources.extend(sources);
     Ok(scene)
+}
+
+/// The affine map of a shape's placement: `(linear part, translation)`.
+fn shape_transform(s: &ShapeDescription) -> Result<(glam::Mat3A, Vec3A), String> {
+    if let Some(m) = s.matrix {
+        if s.scale.is_some() || s.rotate.is_some() || s.translate.is_some() {
+            return Err("give either `matrix` or `scale`/`rotate`/`translate`, not both".into());
+        }
+        if !m.iter().flatten().all(|x| x.is_finite()) {
+            return Err("`matrix` must be finite".into());
+        }
+        if m[3] != [0.0, 0.0, 0.0, 1.0] {
+            return Err(format!("`matrix`'s last row must be [0, 0, 0, 1] (an affine map), got {:?}", m[3]));
+        }
+        let linear = glam::Mat3A::from_cols(
+            Vec3A::new(m[0][0], m[1][0], m[2][0]),
+            Vec3A::new(m[0][1], m[1][1], m[2][1]),
+            Vec3A::new(m[0][2], m[1][2], m[2][2]),
+        );
+        return Ok((linear, Vec3A::new(m[0][3], m[1][3], m[2][3])));
+    }
+    let scale = vec3(s.scale.unwrap_or([1.0; 3]));
+    let translate = vec3(s.translate.unwrap_or([0.0; 3]));
+    if !(scale.is_finite() && translate.is_finite()) {
+        return Err("`scale` and `translate` must be finite".into());
+    }
+    let rotation = match s.rotate {
+        None => glam::Mat3A::IDENTITY,
+        Some(r) => {
+            let axis = vec3(r.axis)
+                .try_normalize()
+                .filter(|_| r.angle.is_finite())
+                .ok_or_else(|| format!("`rotate` needs a finite angle and a non-zero axis, got {r:?}"))?;
+            glam::Mat3A::from_axis_angle(axis.into(), r.angle.to_radians())
+        }
+    };
+    Ok((rotation * glam::Mat3A::from_diagonal(scale.into()), translate))
+}
+
+/// Adds the triangles of the `k`-th `[[shape]]`.
+fn add_shape(path: &Path, k: usize, s: &ShapeDescription, meshes: &mut Meshes) -> Result<()> {
+    let err = |m: String| invalid(path, format!("shape {} ({:?}): {m}", k + 1, s.kind));
+    let material = *meshes.by_name.get(&s.material).ok_or_else(|| err(format!("unknown material `{}`", s.material)))?;
+    let sphere = s.kind == ShapeKind::Sphere;
+    if !sphere && (s.center.is_some() || s.radius.is_some() || s.subdivisions.is_some()) {
+        return Err(err("`center`, `radius` and `subdivisions` are for spheres".into()));
+    }
+    if s.kind != ShapeKind::Disk && s.segments.is_some() {
+        return Err(err("`segments` is for disks".into()));
+    }
+    let local = match s.kind {
+        ShapeKind::Rectangle => super::shapes::rectangle(),
+        ShapeKind::Cube => super::shapes::cube(),
+        ShapeKind::Disk => {
+            let n = s.segments.unwrap_or(super::shapes::DISK_SEGMENTS);
+            if !(3..=1 << 20).contains(&n) {
+                return Err(err(format!("`segments` must lie in 3..=2^20, got {n}")));
+            }
+            super::shapes::disk(n)
+        }
+        ShapeKind::Sphere => {
+            let (c, r) = (vec3(s.center.unwrap_or([0.0; 3])), s.radius.unwrap_or(1.0));
+            let n = s.subdivisions.unwrap_or(super::shapes::SPHERE_SUBDIVISIONS);
+            if !(c.is_finite() && r.is_finite() && r > 0.0) {
+                return Err(err(format!("a sphere needs a finite centre and a positive radius, got {c} and {r}")));
+            }
+            if n > super::shapes::MAX_SPHERE_SUBDIVISIONS {
+                return Err(err(format!(
+                    "`subdivisions` must be at most {}, got {n}",
+                    super::shapes::MAX_SPHERE_SUBDIVISIONS
+                )));
+            }
+            super::shapes::sphere(c, r, n)
+        }
+    };
+    let (linear, translate) = shape_transform(s).map_err(err)?;
+    let det = linear.determinant();
+    if !(det.is_finite() && det.abs() > 1e-30) {
+        return Err(err("the transform flattens the shape (its determinant is zero)".into()));
+    }
+    // A mirroring transform turns the winding inside out: flip it back (then as asked).
+    let flip = (det < 0.0) != s.reverse_winding;
+    for t in local {
+        let mut t = t.map(|p| linear * p + translate);
+        if flip {
+            t.swap(1, 2);
+        }
+        let n = (t[1] - t[0]).cross(t[2] - t[0]);
+        if !t.iter().all(|p| p.is_finite()) || n.length_squared() == 0.0 || !n.normalize().is_finite() {
+            meshes.findings.degenerate += 1;
+            continue;
+        }
+        if meshes.triangles.len() >= MAX_TRIANGLES {
+            return Err(err(format!("more than {MAX_TRIANGLES} triangles in the scene")));
+        }
+        meshes.triangles.push(t);
+        meshes.triangle_material.push(material);
+    }
+    Ok(())
 }
 
 /// What a mesh had that the scene skips or repairs (reported as warnings).

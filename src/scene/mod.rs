@@ -3,6 +3,7 @@
 mod camera;
 pub mod description;
 mod load;
+pub mod shapes;
 
 pub use camera::Camera;
 pub use load::obj_triangles;
