@@ -950,14 +950,19 @@ mod tests {
         assert!(SourceBox::new(Vec3A::ZERO, Vec3A::new(1.0, 0.0, 1.0)).is_none());
     }
 
+    /// The guide `cornell-paper`'s photon map (`photons`, seed 1) seeds, `knn` per estimate.
+    fn cornell_paper_seed(photons: usize, knn: usize) -> LearnedGuide {
+        let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell-paper")).unwrap();
+        let accel = BvhAccel::build(&scene);
+        let map = PhotonMap::build(&scene, &accel, photons, 1).unwrap();
+        LearnedGuide::seed(&scene, &map, knn).unwrap()
+    }
+
     /// On cornell-paper the photon seed finds one bright patch: the ceiling above the light
     /// (which emits up), thin, covering the light's footprint.
     #[test]
     fn the_source_is_the_ceiling_above_the_light() {
-        let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell-paper")).unwrap();
-        let accel = BvhAccel::build(&scene);
-        let map = PhotonMap::build(&scene, &accel, 6891, 1).unwrap();
-        let guide = LearnedGuide::seed(&scene, &map, 50).unwrap();
+        let guide = cornell_paper_seed(6891, 50);
         assert_eq!(guide.sources.len(), 1, "{:?}", guide.sources);
         let b = guide.sources[0];
         assert!(b.contains(Vec3A::new(0.0, 1.0, 0.0)) && b.hi.y - b.lo.y < 0.01, "{b:?}");
@@ -967,10 +972,7 @@ mod tests {
 
     #[test]
     fn cells_follow_the_photons_and_seeds_point_at_the_bright_ceiling() {
-        let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell-paper")).unwrap();
-        let accel = BvhAccel::build(&scene);
-        let map = PhotonMap::build(&scene, &accel, 20_000, 1).unwrap();
-        let guide = LearnedGuide::seed(&scene, &map, 100).unwrap();
+        let guide = cornell_paper_seed(20_000, 100);
         assert!(guide.cells() > 20_000 / PHOTONS_PER_CELL as usize, "{} cells", guide.cells());
         let floor = guide.cell(Vec3A::new(0.1, -1.0, 0.1), Vec3A::Y);
         assert!(guide.has_tree(floor));
