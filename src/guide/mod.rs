@@ -627,13 +627,6 @@ impl LearnedGuide {
         }
     }
 
-    /// Whether an iteration is running (walks deposit only then).
-    #[inline]
-    #[must_use]
-    pub fn learning(&self) -> bool {
-        self.filling.is_some()
-    }
-
     /// Records `value` (an estimate of `f·cos·Lr / pdf` along local direction `w`, summed
     /// over channels) arriving at `cell`. In the cosine-warped square this sums to `∫f·Lr`
     /// over each leaf: the tree's density becomes `f·cos·Lr` per steradian.

@@ -257,7 +257,11 @@ impl LearnedZvidpt {
                 if cos <= 0.0 {
                     continue;
                 }
-                let box_pdf = source.map_or(0.0, |b| b.pdf(si.p, wi));
+                // Needed where the box is sampled, or for the moments that learn `beta`.
+                let box_pdf = match source {
+                    Some(b) if beta > 0.0 || learning => b.pdf(si.p, wi),
+                    _ => 0.0,
+                };
                 let pdf = beta * box_pdf + (1.0 - beta) * mixture_pdf(alpha, learned, cos);
                 // f·cosθ/pdf for a Lambertian surface.
                 let throughput = albedo * (cos * FRAC_1_PI / pdf);

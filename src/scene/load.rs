@@ -303,17 +303,31 @@ fn add_shape(path: &Path, k: usize, s: &ShapeDescription, meshes: &mut Meshes) -
         if flip {
             t.swap(1, 2);
         }
-        let n = (t[1] - t[0]).cross(t[2] - t[0]);
-        if !t.iter().all(|p| p.is_finite()) || n.length_squared() == 0.0 || !n.normalize().is_finite() {
-            meshes.findings.degenerate += 1;
-            continue;
-        }
-        if meshes.triangles.len() >= MAX_TRIANGLES {
-            return Err(err(format!("more than {MAX_TRIANGLES} triangles in the scene")));
-        }
-        meshes.triangles.push(t);
-        meshes.triangle_material.push(material);
+        let Meshes { triangles, triangle_material, findings, .. } = &mut *meshes;
+        push_triangle(triangles, triangle_material, findings, t, material).map_err(err)?;
     }
+    Ok(())
+}
+
+/// Adds triangle `t` of `material`, unless it is degenerate or not finite (counted in
+/// `findings`, reported as a warning); an error past [`MAX_TRIANGLES`].
+fn push_triangle(
+    triangles: &mut Vec<[Vec3A; 3]>,
+    triangle_material: &mut Vec<u32>,
+    findings: &mut MeshFindings,
+    t: [Vec3A; 3],
+    material: u32,
+) -> Result<(), String> {
+    let n = (t[1] - t[0]).cross(t[2] - t[0]);
+    if !t.iter().all(|p| p.is_finite()) || n.length_squared() == 0.0 || !n.normalize().is_finite() {
+        findings.degenerate += 1;
+        return Ok(());
+    }
+    if triangles.len() >= MAX_TRIANGLES {
+        return Err(format!("more than {MAX_TRIANGLES} triangles in the scene"));
+    }
+    triangles.push(t);
+    triangle_material.push(material);
     Ok(())
 }
 
@@ -489,16 +503,7 @@ fn obj_into(
                 if reverse {
                     t.swap(1, 2);
                 }
-                let n = (t[1] - t[0]).cross(t[2] - t[0]);
-                if n.length_squared() == 0.0 || !n.normalize().is_finite() {
-                    findings.degenerate += 1;
-                    continue;
-                }
-                if triangles.len() >= MAX_TRIANGLES {
-                    return Err(mesh_err(format!("more than {MAX_TRIANGLES} triangles in the scene")));
-                }
-                triangles.push(t);
-                triangle_material.push(material);
+                push_triangle(triangles, triangle_material, findings, t, material).map_err(mesh_err)?;
             }
         }
     }
