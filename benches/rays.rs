@@ -35,7 +35,7 @@ fn terrain() -> Scene {
         }
     }
     let camera = Camera::new(Vec3A::new(0.0, 3.0, 6.0), Vec3A::ZERO, Vec3A::Y, 50.0, 512, 512).unwrap();
-    Scene::from_triangles("terrain", camera, tris, Material { diffuse: Vec3A::splat(0.5), emission: Vec3A::ZERO })
+    Scene::from_triangles("terrain", camera, tris, Material::diffuse(Vec3A::splat(0.5), Vec3A::ZERO))
 }
 
 /// Camera rays in 8×8 tiles, the order the renderer traces them.
@@ -69,8 +69,8 @@ fn secondary_rays(scene: &Scene, accel: &BvhAccel, primary: &[Ray]) -> (Vec<Ray>
         let Some(hit) = accel.intersect(&ray) else { continue };
         let si = scene.interaction(&ray, &hit);
         bounce.push(si.spawn_ray(Frame::from_normal(si.n).to_world(warp::cosine_hemisphere(rng.next_2d()))));
-        let target = match scene.sample_emitter(rng.next_f32(), rng.next_2d()) {
-            Some(l) => l.p,
+        let target = match scene.emit_photon(rng.next_f32(), rng.next_2d(), rng.next_2d()) {
+            Some((r, _)) => r.origin,
             None => Vec3A::new(rng.next_f32() - 0.5, 3.0, rng.next_f32() - 0.5),
         };
         let d = target - si.p;

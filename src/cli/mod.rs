@@ -3,7 +3,7 @@
 use crate::accel::{Accel, BackendKind, WithAccel, with_backend};
 use crate::film::{self, Image, Metadata};
 use crate::integrator::{
-    Estimator, GuideSettings, Jensen, LearnedSettings, LearnedZvidpt, MAX_SUBPIXELS, PathTracer, Roulette, Zvidpt,
+    Estimator, GuideSettings, Jensen, LearnedSettings, LearnedZvidpt, MAX_SUBPIXELS, Mis, PathTracer, Roulette, Zvidpt,
 };
 use crate::photon::{GridShape, GuidePhotons, MAX_GUIDE_CELLS};
 use crate::render::aov::{Aovs, first_hit_aovs};
@@ -147,6 +147,11 @@ pub struct PhotonArgs {
     /// light; the estimate is the same, the noise lower).
     #[arg(long, value_enum, default_value_t = LightSampling::SolidAngle)]
     pub light_sampling: LightSampling,
+    /// path: where light found by BSDF sampling is weighed against NEE by multiple importance
+    /// sampling: at surfaces that are not Lambertian (where NEE alone is nearly ideal it only
+    /// adds noise), everywhere, or nowhere.
+    #[arg(long, value_enum, default_value_t = Mis::Glossy)]
+    pub mis: Mis,
     /// Photons stored by the photon pass (jensen, zvidpt-*; the paper used 6891).
     #[arg(long, default_value_t = 6891)]
     pub photons: usize,
@@ -232,6 +237,7 @@ impl PhotonArgs {
         let g = GuideSettings::default();
         Self {
             light_sampling: LightSampling::default(),
+            mis: Mis::default(),
             photons: g.photons,
             knn: g.knn,
             guide_grid: g.grid,
@@ -334,6 +340,7 @@ impl PhotonArgs {
     fn describe(&self, integrator: IntegratorKind, meta: &mut Metadata) {
         meta.push("light_sampling", flag_name(self.light_sampling));
         if integrator == IntegratorKind::Path {
+            meta.push("mis", flag_name(self.mis));
             return;
         }
         meta.push("photons", self.photons);
@@ -441,7 +448,7 @@ impl WithAccel for RenderJob<'_> {
         };
         let (scene, s) = (self.scene, self.settings);
         let (image, stats) = match self.integrator {
-            IntegratorKind::Path => render(scene, accel, &mut PathTracer::default(), s)?,
+            IntegratorKind::Path => render(scene, accel, &mut PathTracer { mis: a.mis, ..PathTracer::default() }, s)?,
             IntegratorKind::Jensen if a.learned_guide == Switch::On => {
                 render(scene, accel, &mut LearnedZvidpt::new(a.learned(Roulette::Albedo)), s)?
             }

@@ -35,6 +35,15 @@ pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
     cos_theta.max(0.0) * FRAC_1_PI
 }
 
+/// Uniform point on the unit disk (polar: `r = √u`, `φ = 2πv`); density `1/π`.
+#[inline]
+#[must_use]
+pub fn uniform_disk(u: Vec2) -> Vec2 {
+    let r = u.x.sqrt();
+    let (s, c) = (TAU * u.y).sin_cos();
+    Vec2::new(r * c, r * s)
+}
+
 /// Uniform point on a triangle as barycentrics `(b0, b1, b2)`; density `1/area`.
 #[inline]
 #[must_use]

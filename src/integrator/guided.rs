@@ -1,10 +1,11 @@
 //! What the photon-guided integrators share: the photon map and guide cache built in the
 //! pre-pass, the per-vertex query (`L̃r`, `L̃1` and the `GL` grid from one lookup), sampling a
 //! direction from the grid, and ZVIDPT's termination probability.
+use super::{Scatter, sample_bsdf};
 use crate::Result;
 use crate::accel::Accel;
 use crate::geometry::{Frame, Vec3A, luminance};
-use crate::photon::guide::{sample_cdf, weights_to_cdf};
+use crate::photon::guide::{grid_pdf, sample_cdf, weights_to_cdf};
 use crate::photon::{FluxDensity, GridShape, GuideCache, GuidePhotons, MAX_GUIDE_CELLS, PhotonMap};
 use crate::sampler::SampleStream;
 use crate::scene::{Scene, SurfaceInteraction};
@@ -164,6 +165,78 @@ impl Guide {
         let (local, pc_cells) = sample_cdf(self.settings.grid, g.cdf, u_cell, rng.next_2d());
         (frame.to_world(local), albedo / pc_cells)
     }
+
+    /// A direction at `si` for any material: the grid on a Lambertian surface (`grid_frame`
+    /// around `si.n`), else [`sample_mixture`] of the BSDF (`frame`, `wi` local) and the grid.
+    #[inline]
+    pub fn scatter(
+        &self,
+        g: &VertexGuide,
+        si: &SurfaceInteraction,
+        grid_frame: &Frame,
+        frame: &Frame,
+        wi: Vec3A,
+        rng: &mut SampleStream,
+    ) -> Option<Scatter> {
+        if let Some(albedo) = si.material.lambertian() {
+            let (dir, weight) = self.sample_direction(g, grid_frame, albedo, rng);
+            return Some(Scatter { dir, weight, pdf: 0.0, delta: false });
+        }
+        let shape = self.settings.grid;
+        sample_mixture(
+            si,
+            frame,
+            wi,
+            grid_frame,
+            rng,
+            |rng| {
+                let u_cell = rng.next_f32();
+                sample_cdf(shape, g.cdf, u_cell, rng.next_2d()).0
+            },
+            |w| grid_pdf(shape, g.cdf, w),
+        )
+    }
+}
+
+/// Share of directions a guided integrator takes from the BSDF's own sampling on a surface
+/// that is not Lambertian (the photon grid and the learned density stand for incident light
+/// times a Lambertian lobe; the BSDF's sampling follows a glossy lobe).
+pub const BSDF_SHARE: f32 = 0.5;
+
+/// A direction at a vertex that is not Lambertian: the BSDF's own sampling on a pure delta
+/// surface; elsewhere a one-sample mixture, the BSDF's sampling with probability
+/// [`BSDF_SHARE`] and `guide` (a sampler and its density, both in local directions of
+/// `guide_frame`) otherwise, weighted by the mixture's density. A delta lobe the BSDF picks
+/// keeps its own weight over its share.
+#[inline]
+pub fn sample_mixture(
+    si: &SurfaceInteraction,
+    frame: &Frame,
+    wi: Vec3A,
+    guide_frame: &Frame,
+    rng: &mut SampleStream,
+    mut guide_sample: impl FnMut(&mut SampleStream) -> Vec3A,
+    guide_pdf: impl Fn(Vec3A) -> f32,
+) -> Option<Scatter> {
+    let bsdf = &si.material.bsdf;
+    if bsdf.is_delta() {
+        return sample_bsdf(si, frame, wi, rng);
+    }
+    let u = rng.next_f32();
+    let (dir, local, pdf_bsdf) = if u < BSDF_SHARE {
+        let s = bsdf.sample(wi, u / BSDF_SHARE, rng.next_2d())?;
+        if s.delta {
+            return Some(Scatter { dir: frame.to_world(s.wo), weight: s.weight / BSDF_SHARE, pdf: 1.0, delta: true });
+        }
+        (frame.to_world(s.wo), s.wo, s.pdf)
+    } else {
+        let dir = guide_frame.to_world(guide_sample(rng));
+        let local = frame.to_local(dir);
+        (dir, local, bsdf.pdf(wi, local))
+    };
+    let pdf = BSDF_SHARE * pdf_bsdf + (1.0 - BSDF_SHARE) * guide_pdf(guide_frame.to_local(dir));
+    let weight = bsdf.eval(wi, local) * (local.z.abs() / pdf);
+    (pdf > 0.0 && weight.is_finite()).then_some(Scatter { dir, weight, pdf, delta: false })
 }
 
 /// `L̃ = ρ/π ⊙ density` (Lambertian).

@@ -1,8 +1,10 @@
 //! Jensen 1995, importance-driven path tracing (ALGORITHM.md §5): the path tracer with
 //! directions drawn from the photon `GL` grid (all photons), uniform pixel sampling, albedo
 //! Russian roulette and next event estimation at every vertex (collision-type accumulation).
+//! On a surface that is not Lambertian, directions come from a mixture of the BSDF's sampling
+//! and the grid ([`super::guided::sample_mixture`]).
 use super::guided::{Guide, GuideSettings};
-use super::path::trace_path;
+use super::path::{Mis, trace_path};
 use super::{Integrator, RenderContext, Scratch};
 use crate::Result;
 use crate::accel::Accel;
@@ -50,10 +52,12 @@ impl Integrator for Jensen {
     ) -> Vec3A {
         let guide = self.guide.as_ref().expect("prepare() builds the photon map");
         let mut grid = std::mem::take(&mut scratch.grid);
-        let radiance = trace_path(ctx, pixel, rng, scratch, self.rr_depth, |si, rng| {
-            let frame = Frame::from_normal(si.n);
-            let g = guide.at(si, &frame, &mut grid);
-            guide.sample_direction(&g, &frame, si.material.diffuse, rng)
+        // Without MIS (Jensen's method counts light by NEE only), so the grid's density on a
+        // Lambertian surface is never needed.
+        let radiance = trace_path(ctx, pixel, rng, scratch, self.rr_depth, Mis::Off, |si, frame, wi, rng| {
+            let grid_frame = Frame::from_normal(si.n);
+            let g = guide.at(si, &grid_frame, &mut grid);
+            guide.scatter(&g, si, &grid_frame, frame, wi, rng)
         });
         scratch.grid = grid;
         radiance

@@ -20,8 +20,9 @@
 //! `--roulette q` uses the paper's `q = L̃1/L̃r` (learned) instead, and `--roulette albedo`
 //! the path tracer's rule: with it, this is PPG-style guided path tracing
 //! (`--integrator jensen --learned-guide on`).
+use super::guided::sample_mixture;
 use super::path::survival_probability;
-use super::{Integrator, PriorSamples, RenderContext, Scratch, direct_light};
+use super::{Integrator, MisAt, PriorSamples, RenderContext, Scratch, direct_light, sample_bsdf};
 use crate::Result;
 use crate::accel::Accel;
 use crate::geometry::{Frame, UVec2, Vec3A, luminance, warp};
@@ -205,11 +206,14 @@ impl LearnedZvidpt {
         scratch: &mut Scratch,
         mut deposits: Option<&mut Deposits>,
     ) -> Vec3A {
-        let albedo = si.material.diffuse;
+        let Some(albedo) = si.material.lambertian() else {
+            return self.reflected_bsdf(ctx, guide, si, weight, reference, depth, branches, rng, scratch, deposits);
+        };
         if albedo == Vec3A::ZERO {
             return Vec3A::ZERO;
         }
-        let direct = direct_light(ctx, si, rng, scratch);
+        let frame = Frame::from_normal(si.n);
+        let direct = direct_light(ctx, si, &frame, frame.to_local(si.wo), MisAt::NONE, rng, scratch);
         let cell = guide.cell(si.p, si.n);
         let est = guide.estimate(cell);
         let mut f = self.continuation(albedo, weight, reference, est, depth);
@@ -221,7 +225,6 @@ impl LearnedZvidpt {
         let n = f.floor() as u32 + u32::from(u < f - f.floor());
         let mut indirect = Vec3A::ZERO;
         if n > 0 {
-            let frame = Frame::from_normal(si.n);
             let alpha = guide.mix(cell);
             let learning = deposits.is_some();
             let tree = alpha > 0.0 || (learning && guide.has_tree(cell));
@@ -317,6 +320,84 @@ impl LearnedZvidpt {
         direct + indirect
     }
 
+    /// [`Self::reflected`] at a surface that is not Lambertian: NEE unless the BSDF is pure
+    /// delta, roulette by albedo after 3 vertices, directions from the BSDF's sampling mixed
+    /// with the cell's learned density where it has one ([`sample_mixture`]), emission behind a
+    /// delta lobe counted. The guide learns nothing here (its densities and estimates stand
+    /// for Lambertian surfaces), and the walk's continuation carries no control variate.
+    #[allow(clippy::too_many_arguments)]
+    fn reflected_bsdf<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        guide: &LearnedGuide,
+        si: &SurfaceInteraction,
+        weight: Vec3A,
+        reference: f32,
+        depth: u32,
+        branches: u32,
+        rng: &mut SampleStream,
+        scratch: &mut Scratch,
+        deposits: Option<&mut Deposits>,
+    ) -> Vec3A {
+        let albedo = si.material.albedo();
+        if albedo == Vec3A::ZERO {
+            return Vec3A::ZERO;
+        }
+        let frame = si.bsdf_frame();
+        let wi = frame.to_local(si.wo);
+        let direct = if si.material.bsdf.is_delta() {
+            Vec3A::ZERO
+        } else {
+            direct_light(ctx, si, &frame, wi, MisAt::NONE, rng, scratch)
+        };
+        let q = if depth >= 3 { survival_probability(albedo) } else { 1.0 };
+        let q = if depth >= 32 { q.min(0.8) } else { q };
+        if rng.next_f32() >= q {
+            return direct;
+        }
+        let cell = guide.cell(si.p, si.n);
+        let guide_frame = Frame::from_normal(si.n);
+        let scatter = if guide.has_tree(cell) {
+            sample_mixture(
+                si,
+                &frame,
+                wi,
+                &guide_frame,
+                rng,
+                |rng| guide.sample(cell, rng.next_2d()).0,
+                |w| guide.pdf(cell, w),
+            )
+        } else {
+            sample_bsdf(si, &frame, wi, rng)
+        };
+        let Some(s) = scatter else {
+            return direct;
+        };
+        let throughput = s.weight / q;
+        let ray = si.spawn_ray(s.dir);
+        scratch.rays += 1;
+        let Some(hit) = ctx.accel.intersect(&ray) else {
+            // The environment behind a delta lobe (NEE counts it elsewhere).
+            return if s.delta { direct + throughput * ctx.scene.environment(s.dir) } else { direct };
+        };
+        let next = ctx.scene.interaction(&ray, &hit);
+        let seen = if s.delta { next.emitted() } else { Vec3A::ZERO };
+        let li = seen
+            + self.reflected(
+                ctx,
+                guide,
+                &next,
+                weight * throughput,
+                reference,
+                depth + 1,
+                branches,
+                rng,
+                scratch,
+                deposits,
+            );
+        direct + throughput * li
+    }
+
     /// The pixel's reference indirect radiance (summed over channels) for the weight window:
     /// the mean learned `L̃ind` at the first hits of a few set-up rays.
     fn pixel_reference<A: Accel>(
@@ -359,7 +440,7 @@ impl LearnedZvidpt {
         let ray = ctx.scene.camera.ray(pixel.as_vec2() + rng.pixel_2d());
         scratch.rays += 1;
         let Some(hit) = ctx.accel.intersect(&ray) else {
-            return Vec3A::ZERO;
+            return ctx.scene.environment(ray.dir);
         };
         let si = ctx.scene.interaction(&ray, &hit);
         si.emitted() + self.reflected(ctx, guide, &si, Vec3A::ONE, reference, 0, 1, rng, scratch, deposits)

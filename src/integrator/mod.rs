@@ -12,11 +12,11 @@ pub use guided::GuideSettings;
 pub use jensen::Jensen;
 pub use learned::{LearnedSettings, LearnedZvidpt, Roulette};
 pub use passes::PriorSamples;
-pub use path::PathTracer;
+pub use path::{Mis, PathTracer};
 pub use zvidpt::{Estimator, MAX_SUBPIXELS, Zvidpt};
 
 use crate::accel::Accel;
-use crate::geometry::{Ray, UVec2, Vec3A, offset_ray_origin};
+use crate::geometry::{Frame, Ray, UVec2, Vec3A, offset_ray_origin};
 use crate::sampler::SampleStream;
 use crate::scene::{LightSampling, Scene, SurfaceInteraction};
 
@@ -99,36 +99,107 @@ pub trait Integrator: Sync + Send {
     ) -> Vec3A;
 }
 
+/// A direction chosen at a vertex: world direction, `f·|cosθ|/pdf`, the density (solid angle;
+/// meaningless for a delta lobe, 0 where a sampler used without MIS does not report it) and
+/// whether a delta lobe was taken (emission seen next is
+/// then counted, as NEE cannot reach it).
+#[derive(Clone, Copy, Debug)]
+pub struct Scatter {
+    pub dir: Vec3A,
+    pub weight: Vec3A,
+    pub pdf: f32,
+    pub delta: bool,
+}
+
+/// The BSDF's own sampling at `si` (local frame `frame`, `wi` the local direction to the
+/// viewer): two numbers for the direction, one for the lobe.
+#[inline]
+pub fn sample_bsdf(si: &SurfaceInteraction, frame: &Frame, wi: Vec3A, rng: &mut SampleStream) -> Option<Scatter> {
+    let u_lobe = rng.next_f32();
+    let s = si.material.bsdf.sample(wi, u_lobe, rng.next_2d())?;
+    Some(Scatter { dir: frame.to_world(s.wo), weight: s.weight, pdf: s.pdf, delta: s.delta })
+}
+
+/// Which light NEE weighs against BSDF sampling at a vertex (see [`path::Mis`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MisAt {
+    /// Emitting surfaces.
+    pub surfaces: bool,
+    pub environment: bool,
+}
+
+impl MisAt {
+    /// NEE alone counts every light (the guided integrators, `--mis off`).
+    pub const NONE: MisAt = MisAt { surfaces: false, environment: false };
+}
+
+/// Veach's power heuristic (β = 2) for the strategy of density `a` against one of density `b`.
+#[inline]
+#[must_use]
+pub fn power_heuristic(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    if a2 + b2 > 0.0 { a2 / (a2 + b2) } else { 0.0 }
+}
+
+/// The light-sampling strategy NEE uses at `si`: the render's, except on surfaces that
+/// transmit, where light from both sides counts and area sampling (which ignores the normal)
+/// is used.
+#[inline]
+#[must_use]
+pub fn nee_strategy(strategy: LightSampling, si: &SurfaceInteraction) -> LightSampling {
+    if si.material.bsdf.transmits() { LightSampling::Area } else { strategy }
+}
+
 /// One next-event-estimation sample of direct light at `si` (ALGORITHM.md §3, `L̂1`): an
 /// emitter triangle by power, a point on it by `ctx.light_sampling` (area is ALGORITHM.md's
-/// choice; solid angle is the default, see [`LightSampling`]), one shadow ray. Always draws
-/// three dimensions so that the stream stays aligned whatever happens.
+/// choice; solid angle is the default, see [`LightSampling`]), one shadow ray, the BSDF
+/// evaluated in `frame` with `wi` the local direction to the viewer. Where `mis` says so
+/// (surfaces, the environment) the result is weighted by the power heuristic against the
+/// BSDF's own sampling (which then counts the emission it finds with the complementary
+/// weight). Always draws three dimensions so that the
+/// stream stays aligned whatever happens. Callers skip it on pure delta surfaces.
+#[allow(clippy::too_many_arguments)]
 #[inline]
 pub fn direct_light<A: Accel>(
     ctx: &RenderContext<A>,
     si: &SurfaceInteraction,
+    frame: &Frame,
+    wi: Vec3A,
+    mis: MisAt,
     rng: &mut SampleStream,
     scratch: &mut Scratch,
 ) -> Vec3A {
     let u_pick = rng.next_f32();
     let u_point = rng.next_2d();
-    let Some(light) = ctx.scene.sample_emitter_from(si.p, si.n, ctx.light_sampling, u_pick, u_point) else {
+    let bsdf = &si.material.bsdf;
+    let strategy = nee_strategy(ctx.light_sampling, si);
+    let Some(light) = ctx.scene.sample_emitter_from(si.p, si.n, strategy, u_pick, u_point) else {
         return Vec3A::ZERO;
     };
-    let to_light = light.p - si.p;
-    let wi = to_light.normalize_or_zero();
-    let cos_x = si.n.dot(wi);
-    // Surfaces reflect only on the side they are seen from.
-    if cos_x <= 0.0 {
+    let dir = if light.infinite { light.p } else { (light.p - si.p).normalize_or_zero() };
+    // Opaque surfaces reflect only on the side they are seen from.
+    if !bsdf.transmits() && si.n.dot(dir) <= 0.0 {
         return Vec3A::ZERO;
     }
-    let origin = offset_ray_origin(si.p, si.p_err, si.ng, wi);
-    let target = offset_ray_origin(light.p, light.p_err, light.ng, -wi);
-    let span = target - origin;
-    let len = span.length();
+    let local = frame.to_local(dir);
+    let f = bsdf.eval(wi, local);
+    if f == Vec3A::ZERO {
+        return Vec3A::ZERO;
+    }
+    let origin = offset_ray_origin(si.p, si.p_err, si.ng, dir);
     scratch.rays += 1;
-    if ctx.accel.occluded(&Ray::new(origin, span / len), len * (1.0 - 1e-4)) {
+    let blocked = if light.infinite {
+        ctx.accel.occluded(&Ray::new(origin, dir), f32::MAX)
+    } else {
+        let target = offset_ray_origin(light.p, light.p_err, light.ng, -dir);
+        let span = target - origin;
+        let len = span.length();
+        ctx.accel.occluded(&Ray::new(origin, span / len), len * (1.0 - 1e-4))
+    };
+    if blocked {
         return Vec3A::ZERO;
     }
-    si.material.brdf() * light.emission * (cos_x * light.inv_pdf)
+    let value = f * light.emission * (local.z.abs() * light.inv_pdf);
+    let weigh = if light.infinite { mis.environment } else { mis.surfaces && !light.delta };
+    if weigh { value * power_heuristic(1.0 / light.inv_pdf, bsdf.pdf(wi, local)) } else { value }
 }

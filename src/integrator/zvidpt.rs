@@ -9,7 +9,8 @@
 //!
 //! The weights are `W0 = 1/(n·m·Pj)` and `W(k+1) = Wk · f·cosθ / (pdf(ωi)·(1 − qk))`.
 use super::guided::{Guide, GuideSettings, radiance_estimate, termination_probability};
-use super::{Integrator, RenderContext, Scratch, direct_light};
+use super::path::survival_probability;
+use super::{Integrator, MisAt, RenderContext, Scratch, direct_light};
 use crate::Result;
 use crate::accel::Accel;
 use crate::geometry::{Frame, UVec2, Vec2, Vec3A, luminance};
@@ -99,11 +100,14 @@ impl Integrator for Zvidpt {
             let film = pixel.as_vec2() + subpixel_point(shape, j, rng.next_2d());
             let ray = ctx.scene.camera.ray(film);
             scratch.rays += 1;
-            if let Some(hit) = ctx.accel.intersect(&ray) {
-                let si = ctx.scene.interaction(&ray, &hit);
-                let lr = radiance_estimate(si.material.diffuse, guide.density_at(&si).all);
-                *v = luminance(si.emitted() + lr);
-            }
+            *v = match ctx.accel.intersect(&ray) {
+                Some(hit) => {
+                    let si = ctx.scene.interaction(&ray, &hit);
+                    let lr = radiance_estimate(si.material.albedo(), guide.density_at(&si).all);
+                    luminance(si.emitted() + lr)
+                }
+                None => luminance(ctx.scene.environment(ray.dir)),
+            };
         }
         crate::photon::guide::weights_to_cdf(&mut cdf[..n], self.pixel_floor);
         SubpixelGrid { cdf }
@@ -129,11 +133,11 @@ impl Integrator for Zvidpt {
         let film = pixel.as_vec2() + subpixel_point(shape, j, Vec2::new(ux, u.y));
         let ray = ctx.scene.camera.ray(film);
         scratch.rays += 1;
+        let weight = Vec3A::splat(1.0 / (n as f32 * pj));
         let Some(hit) = ctx.accel.intersect(&ray) else {
-            return Vec3A::ZERO;
+            return weight * ctx.scene.environment(ray.dir);
         };
         let si = ctx.scene.interaction(&ray, &hit);
-        let weight = Vec3A::splat(1.0 / (n as f32 * pj));
         let mut grid = std::mem::take(&mut scratch.grid);
         let value = self.walk(ctx, guide, si, weight, rng, scratch, &mut grid);
         scratch.grid = grid;
@@ -157,35 +161,53 @@ impl Zvidpt {
     ) -> Vec3A {
         let mut result = weight * si.emitted();
         loop {
-            let albedo = si.material.diffuse;
+            let albedo = si.material.albedo();
             // A surface that reflects nothing ends the walk: both branches below add zero.
             if albedo == Vec3A::ZERO {
                 return result;
             }
-            let frame = Frame::from_normal(si.n);
-            let g = guide.at(&si, &frame, grid);
-            let q = termination_probability(albedo, &g.density, self.q_min, self.q_max, self.q_kappa);
+            let grid_frame = Frame::from_normal(si.n);
+            let g = guide.at(&si, &grid_frame, grid);
+            let frame = si.bsdf_frame();
+            let wi = frame.to_local(si.wo);
+            // A pure delta surface has no `L̂1` (NEE cannot reach through it; the emission its
+            // lobe finds is counted at the next vertex): the walk continues by albedo.
+            let delta = si.material.bsdf.is_delta();
+            let q = if delta {
+                1.0 - survival_probability(albedo)
+            } else {
+                termination_probability(albedo, &g.density, self.q_min, self.q_max, self.q_kappa)
+            };
+            let direct = |rng: &mut SampleStream, scratch: &mut Scratch| {
+                if delta { Vec3A::ZERO } else { direct_light(ctx, &si, &frame, wi, MisAt::NONE, rng, scratch) }
+            };
             match self.estimator {
                 Estimator::Terminal => {
                     if rng.next_f32() < q {
-                        return result + weight * direct_light(ctx, &si, rng, scratch) / q;
+                        return result + weight * direct(rng, scratch) / q;
                     }
                 }
                 Estimator::Collision => {
-                    result += weight * direct_light(ctx, &si, rng, scratch);
+                    result += weight * direct(rng, scratch);
                     if rng.next_f32() < q {
                         return result;
                     }
                 }
             }
-            let (wi, f_cos_over_pdf) = guide.sample_direction(&g, &frame, albedo, rng);
-            weight *= f_cos_over_pdf / (1.0 - q);
-            let ray = si.spawn_ray(wi);
-            scratch.rays += 1;
-            let Some(hit) = ctx.accel.intersect(&ray) else {
+            let Some(s) = guide.scatter(&g, &si, &grid_frame, &frame, wi, rng) else {
                 return result;
             };
+            weight *= s.weight / (1.0 - q);
+            let ray = si.spawn_ray(s.dir);
+            scratch.rays += 1;
+            let Some(hit) = ctx.accel.intersect(&ray) else {
+                // The environment behind a delta lobe (NEE counts it elsewhere).
+                return if s.delta { result + weight * ctx.scene.environment(s.dir) } else { result };
+            };
             si = ctx.scene.interaction(&ray, &hit);
+            if s.delta {
+                result += weight * si.emitted();
+            }
         }
     }
 }

@@ -8,9 +8,9 @@
 //! Surfaces are one-sided as in Mitsuba 3: `wi.z ≤ 0` scatters nothing; a two-sided surface
 //! is handled by its caller flipping the frame to the viewer's side.
 //!
-//! This module is not yet wired into the scene and the integrators (they still use the
-//! Lambertian `scene::Material`); it holds the models and their tests (chi-square against
-//! `pdf`, weights, reciprocity, energy).
+//! A scene's [`crate::scene::Material`] holds one; the integrators build the local frame at
+//! each hit ([`crate::scene::SurfaceInteraction::bsdf_frame`]).
+pub mod conductors;
 pub mod fresnel;
 pub mod microfacet;
 pub mod texture;
@@ -119,6 +119,23 @@ impl Bsdf {
         let (fi, fo) = (fresnel::dielectric(wi.z, eta).0, fresnel::dielectric(wo.z, eta).0);
         let base = if nonlinear { diffuse / (Vec3A::ONE - diffuse * fdr_int) } else { diffuse / (1.0 - fdr_int) };
         base * ((1.0 - fi) * (1.0 - fo) * FRAC_1_PI / (eta * eta))
+    }
+
+    /// A stand-in for the share of light scattered, per channel, for decisions that only
+    /// steer sampling (Russian roulette, the photon guide's radiance estimates): the
+    /// reflectance of a diffuse surface or plastic base, a metal's reflectance at normal
+    /// incidence, 1 for glass.
+    #[must_use]
+    pub fn albedo(&self) -> Vec3A {
+        match *self {
+            Bsdf::Diffuse { reflectance } => reflectance,
+            Bsdf::Conductor { eta, k, specular, .. } => fresnel::conductor(1.0, eta, k) * specular,
+            Bsdf::Dielectric { .. } => Vec3A::ONE,
+            Bsdf::Plastic { diffuse, eta, .. } => {
+                let f0 = fresnel::dielectric(1.0, eta).0;
+                (diffuse * (1.0 - f0) + Vec3A::splat(f0)).min(Vec3A::ONE)
+            }
+        }
     }
 
     /// Whether every direction it scatters to is a delta lobe (no NEE, no guiding through it).

@@ -110,6 +110,12 @@ impl Bitmap {
         }
     }
 
+    /// Width, height and the texels, row-major from the top row.
+    #[must_use]
+    pub fn into_texels(self) -> (usize, usize, Vec<Vec3A>) {
+        (self.width, self.height, self.texels)
+    }
+
     /// Texel `(i, j)` (column, row from the top) after wrapping each index.
     #[inline]
     fn texel(&self, i: i64, j: i64) -> Vec3A {

@@ -88,6 +88,19 @@ pub fn sample_cdf(shape: GridShape, cdf: &[f32], u_cell: f32, u: Vec2) -> (Vec3A
     (warp::cosine_hemisphere(uv), pc * shape.cells() as f32)
 }
 
+/// Density (solid angle) with which [`sample_cdf`] picks local direction `w`: `Pc·|GL|·cosθ/π`
+/// for the cell holding `w`, 0 below the horizon.
+#[inline]
+#[must_use]
+pub fn grid_pdf(shape: GridShape, cdf: &[f32], w: Vec3A) -> f32 {
+    if w.z <= 0.0 {
+        return 0.0;
+    }
+    let c = shape.cell_of(w);
+    let pc = cdf[c] - if c > 0 { cdf[c - 1] } else { 0.0 };
+    pc * shape.cells() as f32 * w.z * std::f32::consts::FRAC_1_PI
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

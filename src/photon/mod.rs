@@ -8,7 +8,7 @@ pub use cache::{GuideCache, GuideRecord};
 pub use guide::{GridShape, MAX_GUIDE_CELLS};
 
 use crate::accel::Accel;
-use crate::geometry::{Frame, Ray, Vec3A, luminance, warp};
+use crate::geometry::{Frame, Vec3A, luminance, warp};
 use crate::integrator::path::survival_probability;
 use crate::sampler::{Domain, SampleStream};
 use crate::scene::Scene;
@@ -197,33 +197,47 @@ impl PhotonMap {
     }
 }
 
-/// Traces photon path `index`: an emitter by power, a uniform point, a cosine direction on
-/// the emitting side; flux `π·Le/pdf_area` (divided by the path count later); stored at every
-/// diffuse hit; continued by Russian roulette on the albedo.
+/// Traces photon path `index` from [`Scene::emit_photon`] (a light by power; on a surface a
+/// uniform point and a cosine direction, flux `π·Le/pdf_area`; divided by the path count
+/// later); stored at every
+/// hit that is not pure delta; continued by Russian roulette on the albedo, in the BSDF's
+/// sampled direction (cosine on a Lambertian surface).
 fn trace_photon_path<A: Accel>(scene: &Scene, accel: &A, seed: u64, index: u64) -> Vec<Photon> {
     let mut rng = SampleStream::in_domain(Domain::Photon, seed, index, 0);
     let mut out = Vec::new();
     let (u_pick, u_point) = (rng.next_f32(), rng.next_2d());
-    let Some(light) = scene.sample_emitter(u_pick, u_point) else {
+    let Some((mut ray, mut flux)) = scene.emit_photon(u_pick, u_point, rng.next_2d()) else {
         return out;
     };
-    let dir = Frame::from_normal(light.ng).to_world(warp::cosine_hemisphere(rng.next_2d()));
-    let mut flux = light.emission * (PI / light.pdf_area);
-    let mut ray = Ray::new(crate::geometry::offset_ray_origin(light.p, light.p_err, light.ng, dir), dir);
     let mut bounce = 0u8;
     while let Some(hit) = accel.intersect(&ray) {
         let si = scene.interaction(&ray, &hit);
-        let albedo = si.material.diffuse;
+        let albedo = si.material.albedo();
         if albedo == Vec3A::ZERO {
             break;
         }
-        out.push(Photon { p: si.p, flux, incoming: si.wo, normal: si.n, bounce, albedo });
+        // No photon where a delta lobe is all there is: nothing could gather it.
+        if !si.material.bsdf.is_delta() {
+            out.push(Photon { p: si.p, flux, incoming: si.wo, normal: si.n, bounce, albedo });
+        }
         let q = survival_probability(albedo);
         if rng.next_f32() >= q {
             break;
         }
-        flux *= albedo / q;
-        let wi = Frame::from_normal(si.n).to_world(warp::cosine_hemisphere(rng.next_2d()));
+        let wi = if let Some(rho) = si.material.lambertian() {
+            flux *= rho / q;
+            Frame::from_normal(si.n).to_world(warp::cosine_hemisphere(rng.next_2d()))
+        } else {
+            // The BSDF's sampling, from the side the photon arrived on (photons only shape the
+            // guide, so the adjoint's 1/η² asymmetry at refraction is not tracked).
+            let frame = si.bsdf_frame();
+            let u_lobe = rng.next_f32();
+            let Some(s) = si.material.bsdf.sample(frame.to_local(si.wo), u_lobe, rng.next_2d()) else {
+                break;
+            };
+            flux *= s.weight / q;
+            frame.to_world(s.wo)
+        };
         ray = si.spawn_ray(wi);
         bounce = bounce.saturating_add(1);
     }

@@ -44,7 +44,7 @@ pub fn first_hit_aovs<A: Accel>(scene: &Scene, accel: &A, seed: u64) -> Aovs {
                         let ray = scene.camera.ray(film);
                         if let Some(hit) = accel.intersect(&ray) {
                             let si = scene.interaction(&ray, &hit);
-                            albedo += si.material.diffuse;
+                            albedo += si.material.albedo();
                             normal += si.n;
                             depth += f64::from((si.p - ray.origin).length());
                             hits += 1;

@@ -14,6 +14,41 @@ pub struct SceneDescription {
     pub meshes: Vec<MeshDescription>,
     #[serde(default, rename = "shape")]
     pub shapes: Vec<ShapeDescription>,
+    #[serde(default, rename = "light")]
+    pub lights: Vec<LightDescription>,
+    pub environment: Option<EnvironmentDescription>,
+}
+
+/// A light that is not a surface.
+#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum LightKind {
+    Point,
+    Spot,
+}
+
+/// A point light, or a spot light (`direction`, `cutoff` and `beam` in degrees: Mitsuba 3's
+/// profile, defaults 20° and ¾ of the cutoff). `intensity` is power per steradian.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LightDescription {
+    #[serde(rename = "type")]
+    pub kind: LightKind,
+    pub position: [f32; 3],
+    pub intensity: [f32; 3],
+    pub direction: Option<[f32; 3]>,
+    pub cutoff: Option<f32>,
+    pub beam: Option<f32>,
+}
+
+/// Light from infinitely far away: a constant `radiance`, or an equirectangular `map` (EXR
+/// linear or PNG sRGB, relative to the scene file; +y up) times `scale`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EnvironmentDescription {
+    pub radiance: Option<[f32; 3]>,
+    pub map: Option<String>,
+    pub scale: Option<f32>,
 }
 
 /// A pinhole camera.
@@ -34,14 +69,49 @@ fn default_up() -> [f32; 3] {
     [0.0, 1.0, 0.0]
 }
 
-/// A two-sided diffuse reflector that may also emit, one-sided, along its geometric normal.
-#[derive(Debug, Deserialize, Clone, Copy)]
+/// The scattering model of a material (see [`crate::material::Bsdf`]).
+#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum MaterialKind {
+    #[default]
+    Diffuse,
+    Conductor,
+    Dielectric,
+    ThinDielectric,
+    Plastic,
+}
+
+/// A material: a scattering model (`type`, diffuse by default) with its parameters, and
+/// emission, one-sided along the geometric normal. Keys that do not apply to the type are
+/// rejected by name.
+#[derive(Debug, Deserialize, Clone, Default)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialDescription {
+    #[serde(default, rename = "type")]
+    pub kind: MaterialKind,
+    /// Diffuse reflectance (diffuse, plastic).
     #[serde(default)]
     pub diffuse: [f32; 3],
     #[serde(default)]
     pub emission: [f32; 3],
+    /// Conductor: a named metal (Mitsuba's names, e.g. "Au"), or `eta` and `k` per channel.
+    pub metal: Option<String>,
+    pub eta: Option<[f32; 3]>,
+    pub k: Option<[f32; 3]>,
+    /// Conductor: a tint on the reflectance (Mitsuba's `specular_reflectance`).
+    pub specular: Option<[f32; 3]>,
+    /// Dielectric, thin dielectric, plastic: interior and exterior index of refraction.
+    pub ior: Option<f32>,
+    pub exterior_ior: Option<f32>,
+    /// Conductor, dielectric: GGX roughness `α` (0 or absent: smooth).
+    pub roughness: Option<f32>,
+    /// Plastic: Mitsuba's `nonlinear` inter-reflection of the base.
+    pub nonlinear: Option<bool>,
+    /// Opaque materials: scatter on both sides (default) or only on the normal's.
+    pub two_sided: Option<bool>,
+    /// Emit on both sides (default: only along the geometric normal).
+    #[serde(default)]
+    pub two_sided_emission: bool,
 }
 
 #[derive(Debug, Deserialize)]

@@ -1,8 +1,12 @@
 //! Loading a scene: the TOML file, its OBJ/MTL meshes, and every check that turns bad input
 //! into an error naming the file (and line, where the parser knows it).
-use super::description::{MaterialDescription, SceneDescription, ShapeDescription, ShapeKind};
-use super::{Camera, Material, Scene};
+use super::description::{LightKind, MaterialDescription, SceneDescription, ShapeDescription, ShapeKind};
+use super::{Camera, Lights, Material, Scene};
 use crate::geometry::Vec3A;
+use crate::light::envmap::Environment;
+use crate::light::point::PointLight;
+use crate::material::texture::{Bitmap, Filter, Wrap};
+use crate::material::{Bsdf, conductors};
 use crate::{Error, Result};
 use std::cell::RefCell;
 use std::collections::HashMap;
@@ -124,28 +128,95 @@ fn vec3(a: [f32; 3]) -> Vec3A {
 }
 
 fn material_from(path: &Path, name: &str, d: &MaterialDescription) -> Result<Material> {
+    let err = |m: String| invalid(path, format!("material `{name}`: {m}"));
     let (diffuse, emission) = (vec3(d.diffuse), vec3(d.emission));
     if !diffuse.is_finite() || diffuse.min_element() < 0.0 || diffuse.max_element() > 1.0 {
-        return Err(invalid(
-            path,
-            format!("material `{name}`: diffuse reflectance must lie in [0, 1], got {:?}", d.diffuse),
-        ));
+        return Err(err(format!("diffuse reflectance must lie in [0, 1], got {:?}", d.diffuse)));
     }
     if !emission.is_finite() || emission.min_element() < 0.0 {
-        return Err(invalid(
-            path,
-            format!("material `{name}`: emission must be finite and non-negative, got {:?}", d.emission),
-        ));
+        return Err(err(format!("emission must be finite and non-negative, got {:?}", d.emission)));
     }
     // Samples are squared for the variance (kept in f32): beyond this a sample's square
     // overflows, and the image's error estimates become infinite.
     if emission.max_element() > MAX_EMISSION {
-        return Err(invalid(
-            path,
-            format!("material `{name}`: emission must be at most {MAX_EMISSION:e} per channel, got {:?}", d.emission),
-        ));
+        return Err(err(format!("emission must be at most {MAX_EMISSION:e} per channel, got {:?}", d.emission)));
     }
-    Ok(Material { diffuse, emission })
+    let bsdf = bsdf_from(d).map_err(err)?;
+    if bsdf.transmits() && d.two_sided.is_some() {
+        return Err(err("`two_sided` is for opaque materials (glass always has two sides)".into()));
+    }
+    if d.two_sided_emission && emission == Vec3A::ZERO {
+        return Err(err("`two_sided_emission` needs an `emission`".into()));
+    }
+    Ok(Material { bsdf, emission, two_sided: d.two_sided.unwrap_or(true), two_sided_emission: d.two_sided_emission })
+}
+
+/// The scattering model a material description asks for; keys that do not apply to its type
+/// are errors.
+fn bsdf_from(d: &MaterialDescription) -> std::result::Result<Bsdf, String> {
+    use crate::scene::description::MaterialKind as K;
+    let kind = format!("{:?}", d.kind).to_lowercase();
+    let allowed: &[&str] = match d.kind {
+        K::Diffuse => &["diffuse"],
+        K::Conductor => &["metal", "eta", "k", "specular", "roughness"],
+        K::Dielectric => &["ior", "exterior_ior", "roughness"],
+        K::ThinDielectric => &["ior", "exterior_ior"],
+        K::Plastic => &["diffuse", "ior", "exterior_ior", "nonlinear"],
+    };
+    let given = [
+        ("diffuse", d.diffuse != [0.0; 3] && d.kind != K::Diffuse),
+        ("metal", d.metal.is_some()),
+        ("eta", d.eta.is_some()),
+        ("k", d.k.is_some()),
+        ("specular", d.specular.is_some()),
+        ("ior", d.ior.is_some()),
+        ("exterior_ior", d.exterior_ior.is_some()),
+        ("roughness", d.roughness.is_some()),
+        ("nonlinear", d.nonlinear.is_some()),
+    ];
+    if let Some((key, _)) = given.iter().find(|(key, set)| *set && !allowed.contains(key)) {
+        return Err(format!("`{key}` does not apply to type \"{kind}\""));
+    }
+    let alpha = d.roughness.unwrap_or(0.0);
+    if !(alpha.is_finite() && (0.0..=1.0).contains(&alpha)) {
+        return Err(format!("roughness must lie in [0, 1], got {alpha}"));
+    }
+    // Defaults: glass 1.5; plastic 1.49 (Mitsuba's polypropylene); outside, vacuum.
+    let eta = |default: f32| -> std::result::Result<f32, String> {
+        let (int, ext) = (d.ior.unwrap_or(default), d.exterior_ior.unwrap_or(1.0));
+        let eta = int / ext;
+        if !(int.is_finite() && ext.is_finite() && int >= 1.0 && ext >= 1.0 && eta.is_finite()) {
+            return Err(format!("indices of refraction must be finite and at least 1, got {int} and {ext}"));
+        }
+        if (eta - 1.0).abs() < 1e-4 {
+            return Err("interior and exterior index of refraction must differ".into());
+        }
+        Ok(eta)
+    };
+    let triple = |what: &str, v: [f32; 3], max: f32| {
+        let ok = v.iter().all(|x| x.is_finite() && *x >= 0.0 && *x <= max);
+        if ok { Ok(vec3(v)) } else { Err(format!("{what} must lie in [0, {max}] per channel, got {v:?}")) }
+    };
+    Ok(match d.kind {
+        K::Diffuse => Bsdf::Diffuse { reflectance: vec3(d.diffuse) },
+        K::Conductor => {
+            let (eta, k) = match (&d.metal, d.eta, d.k) {
+                (Some(m), None, None) => conductors::lookup(m)
+                    .ok_or_else(|| format!("unknown metal `{m}` (known: {})", conductors::names().join(", ")))?,
+                (None, Some(eta), Some(k)) => (triple("eta", eta, 1e3)?, triple("k", k, 1e3)?),
+                (None, None, None) => conductors::lookup("none").expect("the mirror is in the table"),
+                _ => return Err("give either `metal` or both `eta` and `k`".into()),
+            };
+            let specular = triple("specular", d.specular.unwrap_or([1.0; 3]), 1.0)?;
+            match Bsdf::conductor(eta, k, alpha) {
+                Bsdf::Conductor { eta, k, roughness, .. } => Bsdf::Conductor { eta, k, specular, roughness },
+                other => other,
+            }
+        }
+        K::Dielectric => Bsdf::dielectric(eta(1.5)?, alpha),
+        K::ThinDielectric => Bsdf::Dielectric { eta: eta(1.5)?, roughness: None, thin: true },
+        K::Plastic => Bsdf::plastic(vec3(d.diffuse), eta(1.49)?, d.nonlinear.unwrap_or(false)),
+    })
 }
 
 fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
@@ -212,10 +283,83 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
         .parent()
         .and_then(|p| p.file_name())
         .map_or_else(|| "scene".to_string(), |n| n.to_string_lossy().into_owned());
+    let (lights, light_sources) = lights_from(path, &d)?;
     let mut scene =
-        Scene::from_parts(name, path.to_path_buf(), camera, triangles, triangle_material, materials, warnings);
+        Scene::from_parts(name, path.to_path_buf(), camera, triangles, triangle_material, materials, lights, warnings);
     scene.sources.extend(sources);
+    scene.sources.extend(light_sources);
     Ok(scene)
+}
+
+/// The point and spot lights and the environment of a scene file, and the files they read.
+fn lights_from(path: &Path, d: &SceneDescription) -> Result<(Lights, Vec<PathBuf>)> {
+    let mut lights = Lights::default();
+    let mut sources = Vec::new();
+    for (k, l) in d.lights.iter().enumerate() {
+        let err = |e: Error| match e {
+            Error::InvalidOption(m) => invalid(path, format!("light {}: {m}", k + 1)),
+            other => other,
+        };
+        let (position, intensity) = (vec3(l.position), vec3(l.intensity));
+        let light = match l.kind {
+            LightKind::Point => {
+                if l.direction.is_some() || l.cutoff.is_some() || l.beam.is_some() {
+                    return Err(invalid(
+                        path,
+                        format!("light {}: `direction`, `cutoff` and `beam` are for spot lights", k + 1),
+                    ));
+                }
+                PointLight::point(position, intensity)
+            }
+            LightKind::Spot => {
+                let direction = l
+                    .direction
+                    .ok_or_else(|| invalid(path, format!("light {}: a spot light needs `direction`", k + 1)))?;
+                PointLight::spot(position, vec3(direction), intensity, l.cutoff.unwrap_or(20.0), l.beam)
+            }
+        }
+        .map_err(err)?;
+        lights.points.push(light);
+    }
+    if let Some(e) = &d.environment {
+        let scale = e.scale.unwrap_or(1.0);
+        if !(scale.is_finite() && scale >= 0.0) {
+            return Err(invalid(path, format!("environment: scale must be finite and non-negative, got {scale}")));
+        }
+        let env = match (&e.radiance, &e.map) {
+            (Some(r), None) => {
+                let r = vec3(*r) * scale;
+                if !r.is_finite() || r.min_element() < 0.0 || r.max_element() > MAX_EMISSION {
+                    return Err(invalid(
+                        path,
+                        format!("environment: radiance must lie in [0, {MAX_EMISSION:e}], got {r}"),
+                    ));
+                }
+                Environment::constant(r)
+            }
+            (None, Some(file)) => {
+                let file = path.parent().unwrap_or(Path::new(".")).join(file);
+                let bitmap = Bitmap::load(&file, Wrap::Repeat, Filter::Nearest)?;
+                let (w, h, texels) = bitmap.into_texels();
+                if texels.iter().any(|t| !t.is_finite() || t.min_element() < 0.0) {
+                    return Err(Error::Image {
+                        path: file,
+                        message: "an environment map must be finite and non-negative".into(),
+                    });
+                }
+                sources.push(file.clone());
+                Environment::from_texels(w, h, texels.into_iter().map(|t| t * scale).collect()).map_err(
+                    |e| match e {
+                        Error::InvalidOption(m) => Error::Image { path: file.clone(), message: m },
+                        other => other,
+                    },
+                )?
+            }
+            _ => return Err(invalid(path, "environment: give either `radiance` or `map`")),
+        };
+        lights.environment = Some(env);
+    }
+    Ok((lights, sources))
 }
 
 /// The affine map of a shape's placement: `(linear part, translation)`.
@@ -416,6 +560,7 @@ fn obj_into(
                         let d = MaterialDescription {
                             diffuse: m.diffuse.unwrap_or([0.0; 3]),
                             emission: m.emissive.unwrap_or([0.0; 3]),
+                            ..MaterialDescription::default()
                         };
                         let id = materials.len() as u32;
                         materials.push(material_from(obj_path, &m.name, &d)?);
