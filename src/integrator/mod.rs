@@ -189,7 +189,9 @@ pub fn direct_light<A: Accel>(
     let origin = offset_ray_origin(si.p, si.p_err, si.ng, dir);
     scratch.rays += 1;
     let blocked = if light.infinite {
-        ctx.accel.occluded(&Ray::new(origin, dir), f32::MAX)
+        // Nothing lies beyond the scene's bounding sphere.
+        let (centre, radius) = ctx.scene.bounds;
+        ctx.accel.occluded(&Ray::new(origin, dir), 2.0 * ((origin - centre).length() + radius))
     } else {
         let target = offset_ray_origin(light.p, light.p_err, light.ng, -dir);
         let span = target - origin;
