@@ -115,7 +115,8 @@ pub struct Scatter {
 /// viewer): two numbers for the direction, one for the lobe.
 #[inline]
 pub fn sample_bsdf(si: &SurfaceInteraction, frame: &Frame, wi: Vec3A, rng: &mut SampleStream) -> Option<Scatter> {
-    let u_lobe = rng.next_f32();
+    // A Lambertian surface has one lobe: no number to choose it.
+    let u_lobe = if si.material.lambertian().is_some() { 0.5 } else { rng.next_f32() };
     let s = si.material.bsdf.sample(wi, u_lobe, rng.next_2d())?;
     Some(Scatter { dir: frame.to_world(s.wo), weight: s.weight, pdf: s.pdf, delta: s.delta })
 }
@@ -181,8 +182,14 @@ pub fn direct_light<A: Accel>(
     if !bsdf.transmits() && si.n.dot(dir) <= 0.0 {
         return Vec3A::ZERO;
     }
-    let local = frame.to_local(dir);
-    let f = bsdf.eval(wi, local);
+    // Lambertian: `ρ/π` and the cosine at the normal, without the local frame.
+    let (f, cos, local) = match si.material.lambertian() {
+        Some(rho) => (rho * std::f32::consts::FRAC_1_PI, si.n.dot(dir), Vec3A::ZERO),
+        None => {
+            let local = frame.to_local(dir);
+            (bsdf.eval(wi, local), local.z.abs(), local)
+        }
+    };
     if f == Vec3A::ZERO {
         return Vec3A::ZERO;
     }
@@ -201,7 +208,11 @@ pub fn direct_light<A: Accel>(
     if blocked {
         return Vec3A::ZERO;
     }
-    let value = f * light.emission * (local.z.abs() * light.inv_pdf);
+    let value = f * light.emission * (cos * light.inv_pdf);
     let weigh = if light.infinite { mis.environment } else { mis.surfaces && !light.delta };
-    if weigh { value * power_heuristic(1.0 / light.inv_pdf, bsdf.pdf(wi, local)) } else { value }
+    if !weigh {
+        return value;
+    }
+    let local = if si.material.lambertian().is_some() { frame.to_local(dir) } else { local };
+    value * power_heuristic(1.0 / light.inv_pdf, bsdf.pdf(wi, local))
 }

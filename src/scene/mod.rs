@@ -487,7 +487,8 @@ impl Scene {
         u_point: Vec2,
     ) -> Option<DirectSample> {
         let groups = self.groups.as_ref()?;
-        let (g, group_pmf, u_pick) = groups.sample_reusing(u_pick);
+        // Emitting triangles alone (the common case) need no choice of group.
+        let (g, group_pmf, u_pick) = if groups.len() == 1 { (0, 1.0, u_pick) } else { groups.sample_reusing(u_pick) };
         match self.group(g) {
             Group::Triangles => {}
             Group::Point(k) => {
@@ -615,58 +616,15 @@ impl Scene {
         let Some(dir) = (p - x).try_normalize() else {
             return 0.0;
         };
-        let mut tri = *v;
-        let mut pmf = pmf;
-        let mut part =
-            spherical::PartStats { projected: 0.0, omega: st.solid_angle() as f32, cosines: st.corner_cosines(n) };
-        let mut cut = false;
-        let mut dirs = None;
-        for _ in 0..MAX_NEE_SUBDIVISIONS {
-            let c = part.cosines;
-            let (lo, hi) = (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
-            let smooth = part.omega < SUBDIVIDE_SOLID_ANGLE as f32 && lo > 0.0 && hi < COSINE_SPREAD * lo;
-            if smooth || part.omega < 0.01 {
-                break;
-            }
-            let d = match dirs {
-                Some(d) => d,
-                None => match spherical::unit_corners(x, &tri) {
-                    Some(d) => d,
-                    None => return 0.0,
-                },
-            };
-            let (parts, part_dirs, stats) = spherical::subdivide(x, &tri, &d, n);
-            let weights = stats.map(|ps| ps.map_or(0.0, |ps| ps.projected.max(0.01 * ps.omega)));
-            let total: f32 = weights.iter().sum();
-            // The part holding `p`: by its barycentrics in the current triangle, the corner
-            // parts being where one exceeds ½.
-            let Some(b) = barycentrics_along(x, dir, &tri) else {
-                return 0.0;
-            };
-            let k = if b[0] > 0.5 {
-                0
-            } else if b[1] > 0.5 {
-                1
-            } else if b[2] > 0.5 {
-                2
-            } else {
-                3
-            };
-            if total.is_nan() || total <= 0.0 || weights[k] <= 0.0 {
-                return 0.0;
-            }
-            let Some(chosen) = stats[k] else {
-                return 0.0;
-            };
-            (tri, part, pmf, cut, dirs) = (parts[k], chosen, pmf * (weights[k] / total), true, Some(part_dirs[k]));
-        }
-        let st = if cut {
-            match SphericalTriangle::new(x, &tri) {
-                Some(st) => st,
-                None => return 0.0,
-            }
-        } else {
-            st
+        // The descent, each cut taking the part that holds `p` (by its barycentrics in the
+        // current triangle: a corner part where one exceeds ½).
+        let holding = |tri: &[Vec3A; 3], weights: &[f32; 4], total: f32| {
+            let b = barycentrics_along(x, dir, tri)?;
+            let k = (0..3).find(|&c| b[c] > 0.5).unwrap_or(3);
+            (total > 0.0 && weights[k] > 0.0).then(|| (k, weights[k] / total))
+        };
+        let Some((_, st, pmf)) = self.descend(x, n, v, st, pmf, holding) else {
+            return 0.0;
         };
         let Some(w) = st.cosine_warp_weights(n) else {
             return 0.0;
@@ -768,45 +726,14 @@ impl Scene {
         let Some(st) = SphericalTriangle::new(x, v).filter(|st| st.solid_angle() >= spherical::MIN_SOLID_ANGLE) else {
             return self.sample_area(i, pmf, x, u_point);
         };
-        // Where the cosine at `x` varies much over the triangle (it can peak inside, away from
-        // the corners the warp interpolates: on the ceiling 0.03 above the light, next to its
-        // edge), the triangle is cut in four by its edge midpoints, again and again, each time
-        // descending into one part chosen by its estimated contribution (solid angle × mean
-        // corner cosine), until the cosine varies little over the part. The parts tile the
-        // emitter exactly, so the density is the product of the choices' probabilities times
-        // the warp's density in the final part.
-        let mut tri = *v;
-        let mut pmf = pmf;
-        let mut part =
-            spherical::PartStats { projected: 0.0, omega: st.solid_angle() as f32, cosines: st.corner_cosines(n) };
-        let mut cut = false;
-        let mut dirs = None;
-        for _ in 0..MAX_NEE_SUBDIVISIONS {
-            // Stop on what is known of the current part only (never on the part a number
-            // picks), so that the density below is the one sampled.
-            let c = part.cosines;
-            let (lo, hi) = (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
-            let smooth = part.omega < SUBDIVIDE_SOLID_ANGLE as f32 && lo > 0.0 && hi < COSINE_SPREAD * lo;
-            if smooth || part.omega < 0.01 {
-                break;
-            }
-            let d = match dirs {
-                Some(d) => d,
-                None => spherical::unit_corners(x, &tri)?,
-            };
-            let (parts, part_dirs, stats) = spherical::subdivide(x, &tri, &d, n);
-            // Each part's unoccluded contribution ∫cosθ dω (Lambert, f32: only the choice
-            // depends on it), floored at 1% of its Ω so that no part the cosine reaches is left
-            // out.
-            let weights = stats.map(|ps| ps.map_or(0.0, |ps| ps.projected.max(0.01 * ps.omega)));
+        // Cut the emitter where the cosine varies much (see `descend`).
+        let pick = |_: &[Vec3A; 3], weights: &[f32; 4], total: f32| {
             // `u.x` picks the part; rescaled, it is uniform again for what follows.
-            let total = weights.iter().sum();
-            let (k, p, ux) = warp::pick_by_weight_reusing(&weights, total, u_point.x)?;
-            let chosen = stats[k]?;
-            (tri, part, pmf, u_point.x, cut, dirs) = (parts[k], chosen, pmf * p, ux, true, Some(part_dirs[k]));
-        }
-        // A part of at least 64·MIN_SOLID_ANGLE / 4 steradians: Arvo's construction is sound.
-        let st = if cut { SphericalTriangle::new(x, &tri)? } else { st };
+            let (k, p, ux) = warp::pick_by_weight_reusing(weights, total, u_point.x)?;
+            u_point.x = ux;
+            Some((k, p))
+        };
+        let (tri, st, pmf) = self.descend(x, n, v, st, pmf, pick)?;
         let w = st.cosine_warp_weights(n)?;
         let u = warp::bilinear(u_point, w);
         let pdf_u = warp::bilinear_pdf(u, w);
@@ -826,6 +753,58 @@ impl Scene {
             emission: self.material_of(prim).emission,
             inv_pdf,
         })
+    }
+
+    /// NEE's descent into emitter triangle `v` seen from `x` (normal `n`; `st` its spherical
+    /// triangle, `pmf` the probability of having chosen it). Where the cosine at `x` varies
+    /// much over the triangle (it can peak inside, away from the corners the warp
+    /// interpolates: on the ceiling 0.03 above the light, next to its edge), the triangle is
+    /// cut in four by its edge midpoints, again and again, each time descending into one part,
+    /// until the cosine varies little over the part. `choose` picks the part from the current
+    /// triangle and the parts' weights (their unoccluded contribution `∫cosθ dω`, floored at
+    /// 1% of their `Ω` so that no part the cosine reaches is left out) and returns it with its
+    /// probability: by a random number when sampling, as the part holding a given point when
+    /// replaying. The parts tile the emitter exactly, so the density is the product of the
+    /// choices' probabilities (returned with the final part) times the warp's density in it.
+    #[inline]
+    fn descend(
+        &self,
+        x: Vec3A,
+        n: Vec3A,
+        v: &[Vec3A; 3],
+        st: SphericalTriangle,
+        mut pmf: f32,
+        mut choose: impl FnMut(&[Vec3A; 3], &[f32; 4], f32) -> Option<(usize, f32)>,
+    ) -> Option<([Vec3A; 3], SphericalTriangle, f32)> {
+        let mut tri = *v;
+        let mut part =
+            spherical::PartStats { projected: 0.0, omega: st.solid_angle() as f32, cosines: st.corner_cosines(n) };
+        let mut cut = false;
+        let mut dirs = None;
+        for _ in 0..MAX_NEE_SUBDIVISIONS {
+            // Stop on what is known of the current part only (never on the part a number
+            // picks), so that the density is the one sampled.
+            let c = part.cosines;
+            let (lo, hi) = (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
+            let smooth = part.omega < SUBDIVIDE_SOLID_ANGLE as f32 && lo > 0.0 && hi < COSINE_SPREAD * lo;
+            if smooth || part.omega < 0.01 {
+                break;
+            }
+            let d = match dirs {
+                Some(d) => d,
+                None => spherical::unit_corners(x, &tri)?,
+            };
+            let (parts, part_dirs, stats) = spherical::subdivide(x, &tri, &d, n);
+            // Lambert's ∫cosθ dω in f32: only the choice depends on it.
+            let weights = stats.map(|ps| ps.map_or(0.0, |ps| ps.projected.max(0.01 * ps.omega)));
+            let total = weights.iter().sum();
+            let (k, p) = choose(&tri, &weights, total)?;
+            let chosen = stats[k]?;
+            (tri, part, pmf, cut, dirs) = (parts[k], chosen, pmf * p, true, Some(part_dirs[k]));
+        }
+        // A part of at least 64·MIN_SOLID_ANGLE / 4 steradians: Arvo's construction is sound.
+        let st = if cut { SphericalTriangle::new(x, &tri)? } else { st };
+        Some((tri, st, pmf))
     }
 
     /// A uniform point on the area of emitter `i` (chosen with probability `pmf`).
