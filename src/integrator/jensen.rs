@@ -8,7 +8,7 @@ use super::path::{Mis, trace_path};
 use super::{Integrator, RenderContext, Scratch};
 use crate::Result;
 use crate::accel::Accel;
-use crate::geometry::{Frame, UVec2, Vec3A};
+use crate::geometry::{UVec2, Vec3A};
 use crate::photon::GuidePhotons;
 use crate::sampler::SampleStream;
 
@@ -55,7 +55,7 @@ impl Integrator for Jensen {
         // Without MIS (Jensen's method counts light by NEE only), so the grid's density on a
         // Lambertian surface is never needed.
         let radiance = trace_path(ctx, pixel, rng, scratch, self.rr_depth, Mis::Off, |si, frame, wi, rng| {
-            let grid_frame = Frame::from_normal(si.n);
+            let grid_frame = si.gather_frame(frame);
             let g = guide.at(si, &grid_frame, &mut grid);
             guide.scatter(&g, si, &grid_frame, frame, wi, rng)
         });

@@ -356,7 +356,7 @@ impl LearnedZvidpt {
             return direct;
         }
         let cell = guide.cell(si.p, si.n);
-        let guide_frame = Frame::from_normal(si.n);
+        let guide_frame = si.gather_frame(&frame);
         let scatter = if guide.has_tree(cell) {
             sample_mixture(
                 si,

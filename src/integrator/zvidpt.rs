@@ -13,7 +13,7 @@ use super::path::survival_probability;
 use super::{Integrator, MisAt, RenderContext, Scratch, direct_light};
 use crate::Result;
 use crate::accel::Accel;
-use crate::geometry::{Frame, UVec2, Vec2, Vec3A, luminance};
+use crate::geometry::{UVec2, Vec2, Vec3A, luminance};
 use crate::photon::GridShape;
 use crate::photon::guide::pick_cell;
 use crate::sampler::{Domain, SampleStream};
@@ -166,9 +166,9 @@ impl Zvidpt {
             if albedo == Vec3A::ZERO {
                 return result;
             }
-            let grid_frame = Frame::from_normal(si.n);
-            let g = guide.at(&si, &grid_frame, grid);
             let frame = si.bsdf_frame();
+            let grid_frame = si.gather_frame(&frame);
+            let g = guide.at(&si, &grid_frame, grid);
             let wi = frame.to_local(si.wo);
             // A pure delta surface has no `L̂1` (NEE cannot reach through it; the emission its
             // lobe finds is counted at the next vertex): the walk continues by albedo.

@@ -167,6 +167,14 @@ impl SurfaceInteraction {
         Frame::from_normal(self.bsdf_normal())
     }
 
+    /// The frame around `n` (photon lookups and guides work in it), given the BSDF's frame:
+    /// the same frame unless the material transmits.
+    #[inline]
+    #[must_use]
+    pub fn gather_frame(&self, bsdf_frame: &Frame) -> Frame {
+        if self.material.bsdf.transmits() { Frame::from_normal(self.n) } else { *bsdf_frame }
+    }
+
     /// A ray leaving the surface in direction `dir`, origin offset by the error bound.
     #[inline]
     #[must_use]
@@ -602,15 +610,22 @@ impl Scene {
         pmf * dist2 / (cos_y * self.emitters.areas[i])
     }
 
+    /// Emitter `i` as seen from `x` when NEE samples it by solid angle; `None` when it is far
+    /// (see [`Scene::far`]) or too small a solid angle, and so sampled by area.
+    #[inline]
+    fn spherical_triangle(&self, i: usize, x: Vec3A) -> Option<SphericalTriangle> {
+        if self.far(i, x).is_some() {
+            return None;
+        }
+        let v = &self.triangles[self.emitters.prims[i] as usize];
+        SphericalTriangle::new(x, v).filter(|st| st.solid_angle() >= spherical::MIN_SOLID_ANGLE)
+    }
+
     /// [`Scene::sample_solid_angle`]'s density at `p`: the same steps, each cut taking the part
     /// that contains `p`.
     fn solid_angle_pdf(&self, i: usize, pmf: f32, x: Vec3A, n: Vec3A, p: Vec3A) -> f32 {
-        let prim = self.emitters.prims[i];
-        let v = &self.triangles[prim as usize];
-        if self.far(i, x).is_some() {
-            return self.area_pdf(i, pmf, x, p);
-        }
-        let Some(st) = SphericalTriangle::new(x, v).filter(|st| st.solid_angle() >= spherical::MIN_SOLID_ANGLE) else {
+        let v = &self.triangles[self.emitters.prims[i] as usize];
+        let Some(st) = self.spherical_triangle(i, x) else {
             return self.area_pdf(i, pmf, x, p);
         };
         let Some(dir) = (p - x).try_normalize() else {
@@ -720,10 +735,7 @@ impl Scene {
     fn sample_solid_angle(&self, i: usize, pmf: f32, x: Vec3A, n: Vec3A, mut u_point: Vec2) -> Option<DirectSample> {
         let prim = self.emitters.prims[i];
         let v = &self.triangles[prim as usize];
-        if self.far(i, x).is_some() {
-            return self.sample_area(i, pmf, x, u_point);
-        }
-        let Some(st) = SphericalTriangle::new(x, v).filter(|st| st.solid_angle() >= spherical::MIN_SOLID_ANGLE) else {
+        let Some(st) = self.spherical_triangle(i, x) else {
             return self.sample_area(i, pmf, x, u_point);
         };
         // Cut the emitter where the cosine varies much (see `descend`).
