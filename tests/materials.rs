@@ -49,7 +49,7 @@ fn path_agrees_with_itself_under_every_mis_weighting() {
 
 #[test]
 fn photon_guided_integrators_agree_with_path() {
-    agrees("jensen", &mut Jensen::new(GuideSettings::default()), 2048);
+    agrees("jensen", &mut Jensen::new(GuideSettings::default()), 4096);
     // The paper's estimators weigh a walk by 1/q and 1/(1 − q) with q down to 0.05 where the
     // photon map misjudges direct light: heavy tails, which at 2048 spp gave block |z| up to
     // 7.4 against this reference (at 16384 spp 3.4: no bias), so they get more samples.

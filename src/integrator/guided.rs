@@ -180,6 +180,7 @@ impl Guide {
     ) -> Option<Scatter> {
         if let Some(albedo) = si.material.lambertian() {
             let (dir, weight) = self.sample_direction(g, grid_frame, albedo, rng);
+            let weight = if si.shaded { weight * si.shading_ratio(dir, dir.dot(si.n)) } else { weight };
             return Some(Scatter { dir, weight, pdf: 0.0, delta: false });
         }
         let shape = self.settings.grid;
@@ -226,7 +227,13 @@ pub fn sample_mixture(
     let (dir, local, pdf_bsdf) = if u < BSDF_SHARE {
         let s = bsdf.sample(wi, u / BSDF_SHARE, rng.next_2d())?;
         if s.delta {
-            return Some(Scatter { dir: frame.to_world(s.wo), weight: s.weight / BSDF_SHARE, pdf: 1.0, delta: true });
+            let dir = frame.to_world(s.wo);
+            return si.consistent(dir, s.wo.z).then_some(Scatter {
+                dir,
+                weight: s.weight / BSDF_SHARE,
+                pdf: 1.0,
+                delta: true,
+            });
         }
         (frame.to_world(s.wo), s.wo, s.pdf)
     } else {
@@ -235,6 +242,9 @@ pub fn sample_mixture(
         (dir, local, bsdf.pdf(wi, local))
     };
     let pdf = BSDF_SHARE * pdf_bsdf + (1.0 - BSDF_SHARE) * guide_pdf(guide_frame.to_local(dir));
+    if !si.consistent(dir, local.z) {
+        return None;
+    }
     let weight = bsdf.eval(wi, local) * (local.z.abs() / pdf);
     (pdf > 0.0 && weight.is_finite()).then_some(Scatter { dir, weight, pdf, delta: false })
 }

@@ -266,8 +266,12 @@ impl LearnedZvidpt {
                     _ => 0.0,
                 };
                 let pdf = beta * box_pdf + (1.0 - beta) * mixture_pdf(alpha, learned, cos);
-                // f·cosθ/pdf for a Lambertian surface.
-                let throughput = albedo * (cos * FRAC_1_PI / pdf);
+                // f·cosθ/pdf for a Lambertian surface (the cosine at its shading normal).
+                let cos_s = cos * si.shading_ratio(wi, cos);
+                if cos_s <= 0.0 {
+                    continue;
+                }
+                let throughput = albedo * (cos_s * FRAC_1_PI / pdf);
                 let ray = si.spawn_ray(wi);
                 scratch.rays += 1;
                 let mut source_point = None;
@@ -293,7 +297,7 @@ impl LearnedZvidpt {
                 indirect += throughput * li;
                 if let Some(d) = deposits.as_deref_mut() {
                     // The zero-variance target f·cos·Lr: Σ_channels (ρ/π·Lr)·cos / pdf.
-                    let g = (albedo * li).element_sum() * cos * FRAC_1_PI;
+                    let g = (albedo * li).element_sum() * cos_s * FRAC_1_PI;
                     guide.deposit_direction(d, cell, local, g / pdf);
                     guide.deposit_moments(d, cell, g, pdf, learned, cos * FRAC_1_PI, source.map(|_| box_pdf));
                     if let Some(y) = source_point {

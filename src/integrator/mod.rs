@@ -118,7 +118,8 @@ pub fn sample_bsdf(si: &SurfaceInteraction, frame: &Frame, wi: Vec3A, rng: &mut 
     // A Lambertian surface has one lobe: no number to choose it.
     let u_lobe = if si.material.lambertian().is_some() { 0.5 } else { rng.next_f32() };
     let s = si.material.bsdf.sample(wi, u_lobe, rng.next_2d())?;
-    Some(Scatter { dir: frame.to_world(s.wo), weight: s.weight, pdf: s.pdf, delta: s.delta })
+    let dir = frame.to_world(s.wo);
+    si.consistent(dir, s.wo.z).then_some(Scatter { dir, weight: s.weight, pdf: s.pdf, delta: s.delta })
 }
 
 /// Which light NEE weighs against BSDF sampling at a vertex (see [`path::Mis`]).
@@ -182,15 +183,18 @@ pub fn direct_light<A: Accel>(
     if !bsdf.transmits() && si.n.dot(dir) <= 0.0 {
         return Vec3A::ZERO;
     }
-    // Lambertian: `ρ/π` and the cosine at the normal, without the local frame.
+    // Lambertian: `ρ/π` and the cosine at the (shading) normal, without the local frame.
     let (f, cos, local) = match si.material.lambertian() {
-        Some(rho) => (rho * std::f32::consts::FRAC_1_PI, si.n.dot(dir), Vec3A::ZERO),
+        Some(rho) => (rho * std::f32::consts::FRAC_1_PI, si.ns.dot(dir), Vec3A::ZERO),
         None => {
             let local = frame.to_local(dir);
+            if !si.consistent(dir, local.z) {
+                return Vec3A::ZERO;
+            }
             (bsdf.eval(wi, local), local.z.abs(), local)
         }
     };
-    if f == Vec3A::ZERO {
+    if f == Vec3A::ZERO || cos <= 0.0 {
         return Vec3A::ZERO;
     }
     let origin = offset_ray_origin(si.p, si.p_err, si.ng, dir);

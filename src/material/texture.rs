@@ -70,6 +70,22 @@ impl Texture {
     }
 }
 
+impl Texture {
+    /// The mean value over the texture's square `[0, 1)²` (for sampling decisions, such as a
+    /// plastic's share of mirror samples: Mitsuba 3 uses the same).
+    #[must_use]
+    pub fn mean(&self) -> Vec3A {
+        match self {
+            Self::Constant(c) => *c,
+            Self::Checkerboard { a, b, .. } => (*a + *b) * 0.5,
+            Self::Bitmap(b) => {
+                let sum: glam::DVec3 = b.texels.iter().map(|t| glam::Vec3::from(*t).as_dvec3()).sum();
+                (sum / b.texels.len() as f64).as_vec3().into()
+            }
+        }
+    }
+}
+
 /// sRGB's transfer function, decoded: an encoded value in `[0, 1]` to linear.
 #[inline]
 #[must_use]
@@ -90,12 +106,12 @@ impl Bitmap {
         })
     }
 
-    /// Reads a PNG (8 or 16 bits, grey or colour, any alpha ignored; decoded from sRGB) or an
-    /// EXR (linear), by extension.
-    pub fn load(path: &Path, wrap: Wrap, filter: Filter) -> crate::Result<Self> {
+    /// Reads a PNG (8 or 16 bits, grey or colour, any alpha ignored; decoded from sRGB unless
+    /// `raw`, Mitsuba's flag for data such as roughness) or an EXR (linear), by extension.
+    pub fn load(path: &Path, wrap: Wrap, filter: Filter, raw: bool) -> crate::Result<Self> {
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         match ext.as_deref() {
-            Some("png") => load_png(path, wrap, filter),
+            Some("png") => load_png(path, wrap, filter, raw),
             Some("exr") => {
                 let (image, _) = crate::film::read_exr(path)?;
                 let texels = image.pixels.iter().map(|p| Vec3A::from_array(*p)).collect();
@@ -161,7 +177,7 @@ impl Bitmap {
 /// Most bytes a PNG may decode to (a 16k × 16k RGBA image at 16 bits is 2 GiB).
 const PNG_LIMIT: usize = 2 << 30;
 
-fn load_png(path: &Path, wrap: Wrap, filter: Filter) -> crate::Result<Bitmap> {
+fn load_png(path: &Path, wrap: Wrap, filter: Filter, raw: bool) -> crate::Result<Bitmap> {
     let err = |message: String| crate::Error::Image { path: path.to_path_buf(), message };
     let file = std::fs::File::open(path).map_err(|e| crate::Error::io(path, e))?;
     let mut decoder = png::Decoder::new_with_limits(std::io::BufReader::new(file), png::Limits { bytes: PNG_LIMIT });
@@ -184,12 +200,13 @@ fn load_png(path: &Path, wrap: Wrap, filter: Filter) -> crate::Result<Bitmap> {
         d => return Err(err(format!("unsupported bit depth {d:?}"))),
     };
     let (w, h) = (info.width as usize, info.height as usize);
-    let lut: Vec<f32> = (0..256).map(|v| srgb_to_linear(v as f32 / 255.0)).collect();
+    let decode = |c: f32| if raw { c } else { srgb_to_linear(c) };
+    let lut: Vec<f32> = (0..256).map(|v| decode(v as f32 / 255.0)).collect();
     let value = |row: &[u8], k: usize| -> f32 {
         if bytes_per == 1 {
             lut[row[k] as usize]
         } else {
-            srgb_to_linear(f32::from(u16::from_be_bytes([row[2 * k], row[2 * k + 1]])) / 65535.0)
+            decode(f32::from(u16::from_be_bytes([row[2 * k], row[2 * k + 1]])) / 65535.0)
         }
     };
     let mut texels = Vec::with_capacity(w * h);
@@ -296,7 +313,7 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let rgb = dir.join("rgb.png");
         write_png(&rgb, 2, 1, png::ColorType::Rgb, png::BitDepth::Eight, &[255, 0, 128, 0, 64, 255]);
-        let b = Bitmap::load(&rgb, Wrap::Clamp, Filter::Nearest).unwrap();
+        let b = Bitmap::load(&rgb, Wrap::Clamp, Filter::Nearest, false).unwrap();
         assert_eq!((b.width, b.height), (2, 1));
         assert!((b.texels[0] - Vec3A::new(1.0, 0.0, srgb_to_linear(128.0 / 255.0))).abs().max_element() < 1e-6);
         assert!((b.texels[1] - Vec3A::new(0.0, srgb_to_linear(64.0 / 255.0), 1.0)).abs().max_element() < 1e-6);
@@ -309,14 +326,14 @@ mod tests {
             png::BitDepth::Sixteen,
             &[0x80, 0x00, 0xff, 0xff, 0xff, 0xff, 0x00, 0x00],
         );
-        let g = Bitmap::load(&grey16, Wrap::Clamp, Filter::Nearest).unwrap();
+        let g = Bitmap::load(&grey16, Wrap::Clamp, Filter::Nearest, false).unwrap();
         assert!((g.texels[0] - Vec3A::splat(srgb_to_linear(32768.0 / 65535.0))).abs().max_element() < 1e-6);
         assert_eq!(g.texels[1], Vec3A::ONE);
         // Not a PNG, missing, unknown extension: errors that name the file.
         let junk = dir.join("junk.png");
         std::fs::write(&junk, b"not a png at all").unwrap();
         for p in [junk, dir.join("missing.png"), dir.join("texture.bmp")] {
-            let e = Bitmap::load(&p, Wrap::Repeat, Filter::Bilinear).unwrap_err().to_string();
+            let e = Bitmap::load(&p, Wrap::Repeat, Filter::Bilinear, false).unwrap_err().to_string();
             assert!(e.contains(p.file_name().unwrap().to_str().unwrap()), "{e}");
         }
         std::fs::remove_dir_all(&dir).unwrap();

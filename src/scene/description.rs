@@ -10,6 +10,9 @@ pub struct SceneDescription {
     /// a whole mesh with `material = "name"`.
     #[serde(default)]
     pub materials: BTreeMap<String, MaterialDescription>,
+    /// Textures by name, for materials' `*_texture` keys.
+    #[serde(default)]
+    pub textures: BTreeMap<String, TextureDescription>,
     #[serde(default, rename = "mesh")]
     pub meshes: Vec<MeshDescription>,
     #[serde(default, rename = "shape")]
@@ -112,6 +115,55 @@ pub struct MaterialDescription {
     /// Emit on both sides (default: only along the geometric normal).
     #[serde(default)]
     pub two_sided_emission: bool,
+    /// A texture (a name from `[textures]`) for the diffuse reflectance (diffuse, plastic),
+    /// in place of `diffuse`.
+    pub diffuse_texture: Option<String>,
+    /// A texture for a conductor's `specular` tint.
+    pub specular_texture: Option<String>,
+    /// A texture for the roughness `α` (conductor, dielectric): its luminance.
+    pub roughness_texture: Option<String>,
+}
+
+/// The kinds of texture (see [`crate::material::texture::Texture`]).
+#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum TextureKind {
+    Bitmap,
+    Checkerboard,
+}
+
+/// What a bitmap holds beyond `[0, 1]²`.
+#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum WrapDescription {
+    Repeat,
+    Mirror,
+    Clamp,
+}
+
+/// How a bitmap is read between texel centres.
+#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum FilterDescription {
+    Bilinear,
+    Nearest,
+}
+
+/// A texture: a `bitmap` (`file`: PNG decoded from sRGB unless `raw`, or EXR linear;
+/// `wrap` repeat/mirror/clamp, `filter` bilinear/nearest) or a `checkerboard` (`color0` at
+/// the origin, `color1`, `scale` squares across `u` and `v` in `[0, 1)`).
+#[derive(Debug, Deserialize, Clone)]
+#[serde(deny_unknown_fields)]
+pub struct TextureDescription {
+    #[serde(rename = "type")]
+    pub kind: TextureKind,
+    pub file: Option<String>,
+    pub wrap: Option<WrapDescription>,
+    pub filter: Option<FilterDescription>,
+    pub raw: Option<bool>,
+    pub color0: Option<[f32; 3]>,
+    pub color1: Option<[f32; 3]>,
+    pub scale: Option<[f32; 2]>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -1,10 +1,11 @@
 //! Loading a scene: the TOML file, its OBJ/MTL meshes, and every check that turns bad input
 //! into an error naming the file (and line, where the parser knows it).
 use super::description::{LightKind, MaterialDescription, SceneDescription, ShapeDescription, ShapeKind};
-use super::{Camera, Lights, Material, Scene};
-use crate::geometry::Vec3A;
+use super::{Attributes, Camera, Lights, Material, Scene, TextureSlots};
+use crate::geometry::{Vec2, Vec3A};
 use crate::light::envmap::Environment;
 use crate::light::point::PointLight;
+use crate::material::texture::Texture;
 use crate::material::texture::{Bitmap, Filter, Wrap};
 use crate::material::{Bsdf, conductors};
 use crate::{Error, Result};
@@ -116,7 +117,7 @@ pub fn obj_triangles(obj: &str, mtl: &str) -> Result<usize> {
     let mut meshes = Meshes::default();
     let loader = |_: &Path| parse_mtl(mtl);
     obj_into(Path::new("fuzz.obj"), obj, &loader, &RefCell::new(None), None, false, &mut meshes)?;
-    Ok(meshes.triangles.len())
+    Ok(meshes.geometry.triangles.len())
 }
 
 fn invalid(path: &Path, message: impl Into<String>) -> Error {
@@ -127,7 +128,13 @@ fn vec3(a: [f32; 3]) -> Vec3A {
     Vec3A::from_array(a)
 }
 
-fn material_from(path: &Path, name: &str, d: &MaterialDescription) -> Result<Material> {
+fn material_from(
+    path: &Path,
+    name: &str,
+    d: &MaterialDescription,
+    texture_ids: &HashMap<String, u16>,
+    mean_of: impl Fn(u16) -> Vec3A,
+) -> Result<Material> {
     let err = |m: String| invalid(path, format!("material `{name}`: {m}"));
     let (diffuse, emission) = (vec3(d.diffuse), vec3(d.emission));
     if !diffuse.is_finite() || diffuse.min_element() < 0.0 || diffuse.max_element() > 1.0 {
@@ -148,7 +155,113 @@ fn material_from(path: &Path, name: &str, d: &MaterialDescription) -> Result<Mat
     if d.two_sided_emission && emission == Vec3A::ZERO {
         return Err(err("`two_sided_emission` needs an `emission`".into()));
     }
-    Ok(Material { bsdf, emission, two_sided: d.two_sided.unwrap_or(true), two_sided_emission: d.two_sided_emission })
+    let textures = texture_slots(d, &bsdf, texture_ids).map_err(err)?;
+    // A textured plastic chooses its mirror by the texture's mean reflectance.
+    let bsdf = match (bsdf, textures.reflectance) {
+        (Bsdf::Plastic { eta, nonlinear, .. }, Some(t)) => Bsdf::plastic(mean_of(t), eta, nonlinear),
+        (bsdf, _) => bsdf,
+    };
+    Ok(Material {
+        bsdf,
+        emission,
+        two_sided: d.two_sided.unwrap_or(true),
+        two_sided_emission: d.two_sided_emission,
+        textures,
+    })
+}
+
+/// The textures a material description names, checked against its type.
+fn texture_slots(
+    d: &MaterialDescription,
+    bsdf: &Bsdf,
+    texture_ids: &HashMap<String, u16>,
+) -> std::result::Result<TextureSlots, String> {
+    let find = |key: &str, name: &Option<String>, applies: bool| -> std::result::Result<Option<u16>, String> {
+        let Some(name) = name else { return Ok(None) };
+        if !applies {
+            return Err(format!("`{key}` does not apply to type \"{}\"", format!("{:?}", d.kind).to_lowercase()));
+        }
+        texture_ids.get(name).copied().map(Some).ok_or_else(|| format!("`{key}`: unknown texture `{name}`"))
+    };
+    let diffuse =
+        find("diffuse_texture", &d.diffuse_texture, matches!(bsdf, Bsdf::Diffuse { .. } | Bsdf::Plastic { .. }))?;
+    let specular = find("specular_texture", &d.specular_texture, matches!(bsdf, Bsdf::Conductor { .. }))?;
+    let roughness = find(
+        "roughness_texture",
+        &d.roughness_texture,
+        matches!(bsdf, Bsdf::Conductor { .. } | Bsdf::Dielectric { thin: false, .. }),
+    )?;
+    Ok(TextureSlots { reflectance: diffuse.or(specular), roughness })
+}
+
+/// A scene's textures, their indices by name, and the files they were read from.
+type Textures = (Vec<Texture>, HashMap<String, u16>, Vec<PathBuf>);
+
+/// The `[textures]` of a scene file, their indices by name, and the files they read.
+fn textures_from(path: &Path, d: &SceneDescription) -> Result<Textures> {
+    use super::description::{FilterDescription, TextureKind, WrapDescription};
+    let (mut textures, mut ids, mut sources) = (Vec::new(), HashMap::new(), Vec::new());
+    if d.textures.len() > usize::from(u16::MAX) {
+        return Err(invalid(path, format!("more than {} textures", u16::MAX)));
+    }
+    for (name, t) in &d.textures {
+        let err = |m: String| invalid(path, format!("texture `{name}`: {m}"));
+        let colour = |key: &str, v: Option<[f32; 3]>, default: f32| {
+            let v = v.unwrap_or([default; 3]);
+            if v.iter().all(|x| x.is_finite() && *x >= 0.0) {
+                Ok(vec3(v))
+            } else {
+                Err(err(format!("`{key}` must be finite and non-negative, got {v:?}")))
+            }
+        };
+        let texture = match t.kind {
+            TextureKind::Checkerboard => {
+                if t.file.is_some() || t.wrap.is_some() || t.filter.is_some() || t.raw.is_some() {
+                    return Err(err("`file`, `wrap`, `filter` and `raw` are for bitmaps".into()));
+                }
+                let scale = t.scale.unwrap_or([2.0; 2]);
+                if !scale.iter().all(|x| x.is_finite() && *x > 0.0 && *x <= 1e6) {
+                    return Err(err(format!("`scale` must lie in (0, 1e6], got {scale:?}")));
+                }
+                // Mitsuba 3's defaults: 0.4 and 0.2.
+                Texture::Checkerboard {
+                    a: colour("color0", t.color0, 0.4)?,
+                    b: colour("color1", t.color1, 0.2)?,
+                    scale: Vec2::from_array(scale),
+                }
+            }
+            TextureKind::Bitmap => {
+                if t.color0.is_some() || t.color1.is_some() || t.scale.is_some() {
+                    return Err(err("`color0`, `color1` and `scale` are for checkerboards".into()));
+                }
+                let Some(file) = &t.file else {
+                    return Err(err("a bitmap needs `file`".into()));
+                };
+                let file = path.parent().unwrap_or(Path::new(".")).join(file);
+                let wrap = match t.wrap {
+                    None | Some(WrapDescription::Repeat) => Wrap::Repeat,
+                    Some(WrapDescription::Mirror) => Wrap::Mirror,
+                    Some(WrapDescription::Clamp) => Wrap::Clamp,
+                };
+                let filter = match t.filter {
+                    None | Some(FilterDescription::Bilinear) => Filter::Bilinear,
+                    Some(FilterDescription::Nearest) => Filter::Nearest,
+                };
+                let bitmap = Bitmap::load(&file, wrap, filter, t.raw.unwrap_or(false))?;
+                if bitmap.texels.iter().any(|t| !t.is_finite() || t.min_element() < 0.0) {
+                    return Err(Error::Image {
+                        path: file,
+                        message: "a texture must be finite and non-negative".into(),
+                    });
+                }
+                sources.push(file);
+                Texture::Bitmap(bitmap)
+            }
+        };
+        ids.insert(name.clone(), textures.len() as u16);
+        textures.push(texture);
+    }
+    Ok((textures, ids, sources))
 }
 
 /// The scattering model a material description asks for; keys that do not apply to its type
@@ -231,10 +344,11 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
     let camera = Camera::new(vec3(c.eye), vec3(c.look_at), vec3(c.up), c.fov_y, c.width, c.height)
         .ok_or_else(|| invalid(path, "camera: eye equals look_at, or up is parallel to the view direction"))?;
 
+    let (textures, texture_ids, texture_sources) = textures_from(path, &d)?;
     let mut meshes = Meshes::default();
     for (name, m) in &d.materials {
         meshes.by_name.insert(name.clone(), meshes.materials.len() as u32);
-        meshes.materials.push(material_from(path, name, m)?);
+        meshes.materials.push(material_from(path, name, m, &texture_ids, |t| textures[usize::from(t)].mean())?);
     }
 
     let folder = path.parent().unwrap_or(Path::new("."));
@@ -259,7 +373,7 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
     for (k, shape) in d.shapes.iter().enumerate() {
         add_shape(path, k, shape, &mut meshes)?;
     }
-    let Meshes { materials, triangles, triangle_material, findings, .. } = meshes;
+    let Meshes { materials, geometry: Geometry { triangles, triangle_material, attributes, findings }, .. } = meshes;
     if triangles.is_empty() {
         return Err(invalid(path, "the scene has no (non-degenerate) triangles"));
     }
@@ -286,6 +400,9 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
     let (lights, light_sources) = lights_from(path, &d)?;
     let mut scene =
         Scene::from_parts(name, path.to_path_buf(), camera, triangles, triangle_material, materials, lights, warnings);
+    scene.attributes = attributes;
+    scene.textures = textures;
+    scene.sources.extend(texture_sources);
     scene.sources.extend(sources);
     scene.sources.extend(light_sources);
     Ok(scene)
@@ -339,7 +456,7 @@ fn lights_from(path: &Path, d: &SceneDescription) -> Result<(Lights, Vec<PathBuf
             }
             (None, Some(file)) => {
                 let file = path.parent().unwrap_or(Path::new(".")).join(file);
-                let bitmap = Bitmap::load(&file, Wrap::Repeat, Filter::Nearest)?;
+                let bitmap = Bitmap::load(&file, Wrap::Repeat, Filter::Nearest, false)?;
                 let (w, h, texels) = bitmap.into_texels();
                 if texels.iter().any(|t| !t.is_finite() || t.min_element() < 0.0) {
                     return Err(Error::Image {
@@ -399,6 +516,64 @@ fn shape_transform(s: &ShapeDescription) -> Result<(glam::Mat3A, Vec3A), String>
     Ok((rotation * glam::Mat3A::from_diagonal(scale.into()), translate))
 }
 
+/// The texture coordinates (and for a sphere the normals) of triangle `t` of a canonical
+/// shape, as Mitsuba 3 gives them: the rectangle `((x+1)/2, (y+1)/2)` (each cube face alike, in
+/// its own two axes); the disk `(r, φ/2π)`; the sphere `(φ/2π, θ/π)` about its centre (`θ`
+/// from +z), with its radial normals for smooth shading. Triangles across the seam `φ = 0`
+/// take `u` beyond 1, and a corner at a pole the mean `u` of the other two, so that no
+/// triangle spans the whole texture.
+fn shape_corners(kind: ShapeKind, t: &[Vec3A; 3], centre: Vec3A, radius: f32) -> Corners {
+    let angle = |p: Vec3A| {
+        let phi = p.y.atan2(p.x);
+        if phi < 0.0 { phi + std::f32::consts::TAU } else { phi }
+    };
+    let fix_seam = |mut uv: [Vec2; 3], pole: [bool; 3]| {
+        let us: Vec<f32> = (0..3).filter(|&k| !pole[k]).map(|k| uv[k].x).collect();
+        let (lo, hi) = us.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &u| (a.min(u), b.max(u)));
+        if hi - lo > 0.5 {
+            for (k, c) in uv.iter_mut().enumerate() {
+                if !pole[k] && c.x < 0.5 {
+                    c.x += 1.0;
+                }
+            }
+        }
+        let others: Vec<f32> = (0..3).filter(|&k| !pole[k]).map(|k| uv[k].x).collect();
+        if !others.is_empty() {
+            let mean = others.iter().sum::<f32>() / others.len() as f32;
+            for k in 0..3 {
+                if pole[k] {
+                    uv[k].x = mean;
+                }
+            }
+        }
+        uv
+    };
+    match kind {
+        ShapeKind::Rectangle => Corners { normals: None, uvs: Some(t.map(|p| Vec2::new(p.x + 1.0, p.y + 1.0) * 0.5)) },
+        ShapeKind::Cube => {
+            // The face's axis is the one all three corners share.
+            let axis = (0..3).find(|&a| t[0][a] == t[1][a] && t[1][a] == t[2][a]).unwrap_or(2);
+            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+            Corners { normals: None, uvs: Some(t.map(|p| Vec2::new(p[u] + 1.0, p[v] + 1.0) * 0.5)) }
+        }
+        ShapeKind::Disk => {
+            let centre_corner = t.map(|p| p.truncate().length() < 1e-6);
+            let uv = t.map(|p| Vec2::new(p.truncate().length(), angle(p) / std::f32::consts::TAU));
+            // The disk's polar `u` is `r`: its seam is in `v`.
+            let swapped = fix_seam(uv.map(|c| Vec2::new(c.y, c.x)), centre_corner);
+            Corners { normals: None, uvs: Some(swapped.map(|c| Vec2::new(c.y, c.x))) }
+        }
+        ShapeKind::Sphere => {
+            let d = t.map(|p| ((p - centre) / radius).normalize_or_zero());
+            let pole = d.map(|n| n.x == 0.0 && n.y == 0.0);
+            let uv = d.map(|n| {
+                Vec2::new(angle(n) / std::f32::consts::TAU, n.z.clamp(-1.0, 1.0).acos() / std::f32::consts::PI)
+            });
+            Corners { normals: Some(d), uvs: Some(fix_seam(uv, pole)) }
+        }
+    }
+}
+
 /// Adds the triangles of the `k`-th `[[shape]]`.
 fn add_shape(path: &Path, k: usize, s: &ShapeDescription, meshes: &mut Meshes) -> Result<()> {
     let err = |m: String| invalid(path, format!("shape {} ({:?}): {m}", k + 1, s.kind));
@@ -410,6 +585,7 @@ fn add_shape(path: &Path, k: usize, s: &ShapeDescription, meshes: &mut Meshes) -
     if s.kind != ShapeKind::Disk && s.segments.is_some() {
         return Err(err("`segments` is for disks".into()));
     }
+    let (centre, radius) = (vec3(s.center.unwrap_or([0.0; 3])), s.radius.unwrap_or(1.0));
     let local = match s.kind {
         ShapeKind::Rectangle => super::shapes::rectangle(),
         ShapeKind::Cube => super::shapes::cube(),
@@ -442,37 +618,97 @@ fn add_shape(path: &Path, k: usize, s: &ShapeDescription, meshes: &mut Meshes) -
     }
     // A mirroring transform turns the winding inside out: flip it back (then as asked).
     let flip = (det < 0.0) != s.reverse_winding;
+    // Normals map by the inverse transpose (outward stays outward), and turn with the winding
+    // when it is reversed on request.
+    let normal_map = linear.inverse().transpose() * if s.reverse_winding { -1.0 } else { 1.0 };
     for t in local {
+        let mut corners = shape_corners(s.kind, &t, centre, radius);
         let mut t = t.map(|p| linear * p + translate);
+        corners.normals = corners.normals.map(|c| c.map(|n| normal_map * n));
         if flip {
             t.swap(1, 2);
+            corners.swap();
         }
-        let Meshes { triangles, triangle_material, findings, .. } = &mut *meshes;
-        push_triangle(triangles, triangle_material, findings, t, material).map_err(err)?;
+        push_triangle(&mut meshes.geometry, t, corners, material).map_err(err)?;
     }
     Ok(())
 }
 
-/// Adds triangle `t` of `material`, unless it is degenerate or not finite (counted in
-/// `findings`, reported as a warning); an error past [`MAX_TRIANGLES`].
-fn push_triangle(
-    triangles: &mut Vec<[Vec3A; 3]>,
-    triangle_material: &mut Vec<u32>,
-    findings: &mut MeshFindings,
-    t: [Vec3A; 3],
-    material: u32,
-) -> Result<(), String> {
+/// What a triangle's corners carry besides positions.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Corners {
+    pub normals: Option<[Vec3A; 3]>,
+    pub uvs: Option<[Vec2; 3]>,
+}
+
+impl Corners {
+    /// Swaps corners 1 and 2 (with a triangle's winding).
+    fn swap(&mut self) {
+        if let Some(n) = &mut self.normals {
+            n.swap(1, 2);
+        }
+        if let Some(uv) = &mut self.uvs {
+            uv.swap(1, 2);
+        }
+    }
+}
+
+/// Adds triangle `t` of `material` with its corners' attributes, unless it is degenerate or
+/// not finite (counted in `findings`, reported as a warning); an error past
+/// [`MAX_TRIANGLES`]. Vertex normals that are not finite and non-zero are dropped; where they
+/// are kept they decide the outside, as in pbrt-v4: a triangle wound against them is turned.
+fn push_triangle(g: &mut Geometry, mut t: [Vec3A; 3], mut corners: Corners, material: u32) -> Result<(), String> {
     let n = (t[1] - t[0]).cross(t[2] - t[0]);
     if !t.iter().all(|p| p.is_finite()) || n.length_squared() == 0.0 || !n.normalize().is_finite() {
-        findings.degenerate += 1;
+        g.findings.degenerate += 1;
         return Ok(());
     }
-    if triangles.len() >= MAX_TRIANGLES {
+    if g.triangles.len() >= MAX_TRIANGLES {
         return Err(format!("more than {MAX_TRIANGLES} triangles in the scene"));
     }
-    triangles.push(t);
-    triangle_material.push(material);
+    corners.normals = corners.normals.and_then(|c| {
+        let unit = c.map(|v| v.normalize_or_zero());
+        unit.iter().all(|v| *v != Vec3A::ZERO).then_some(unit)
+    });
+    if corners.uvs.is_some_and(|uv| !uv.iter().all(|v| v.is_finite())) {
+        corners.uvs = None;
+    }
+    if let Some(c) = corners.normals
+        && (c[0] + c[1] + c[2]).dot(n) < 0.0
+    {
+        t.swap(1, 2);
+        corners.swap();
+    }
+    let i = g.triangles.len();
+    let attributes = &mut g.attributes;
+    match corners.normals {
+        Some(c) => {
+            attributes.normals.resize(i, [Vec3A::ZERO; 3]);
+            attributes.normals.push(c);
+        }
+        None if !attributes.normals.is_empty() => attributes.normals.push([Vec3A::ZERO; 3]),
+        None => {}
+    }
+    match corners.uvs {
+        Some(c) => {
+            attributes.uvs.resize(i, Attributes::BARYCENTRIC_UV);
+            attributes.uvs.push(c);
+        }
+        None if !attributes.uvs.is_empty() => attributes.uvs.push(Attributes::BARYCENTRIC_UV),
+        None => {}
+    }
+    g.triangles.push(t);
+    g.triangle_material.push(material);
     Ok(())
+}
+
+/// The triangles added so far, with their materials and attributes.
+#[derive(Default)]
+pub(crate) struct Geometry {
+    pub triangles: Vec<[Vec3A; 3]>,
+    pub triangle_material: Vec<u32>,
+    pub attributes: Attributes,
+    findings: MeshFindings,
 }
 
 /// What a mesh had that the scene skips or repairs (reported as warnings).
@@ -500,9 +736,7 @@ fn parse_mtl(text: &str) -> tobj::MTLLoadResult {
 struct Meshes {
     materials: Vec<Material>,
     by_name: HashMap<String, u32>,
-    triangles: Vec<[Vec3A; 3]>,
-    triangle_material: Vec<u32>,
-    findings: MeshFindings,
+    geometry: Geometry,
 }
 
 /// Adds the triangles of the OBJ file `obj_path` (its `mtllib` files read beside it).
@@ -541,7 +775,7 @@ fn obj_into(
     reverse: bool,
     meshes: &mut Meshes,
 ) -> Result<()> {
-    let Meshes { materials, by_name, triangles, triangle_material, findings } = meshes;
+    let Meshes { materials, by_name, geometry } = meshes;
     let mesh_err = |message: String| Error::Mesh { path: obj_path.to_path_buf(), message };
     // Polygons are kept whole (tobj would fan them, wrong for concave ones) and points and
     // lines kept too, so that nothing is dropped without a word.
@@ -563,7 +797,7 @@ fn obj_into(
                             ..MaterialDescription::default()
                         };
                         let id = materials.len() as u32;
-                        materials.push(material_from(obj_path, &m.name, &d)?);
+                        materials.push(material_from(obj_path, &m.name, &d, &HashMap::new(), |_| Vec3A::ZERO)?);
                         by_name.insert(m.name.clone(), id);
                         id
                     }
@@ -613,6 +847,26 @@ fn obj_into(
             let i = i as usize * 3;
             Vec3A::new(m.positions[i], m.positions[i + 1], m.positions[i + 2])
         };
+        // Normals and texture coordinates where every corner has one (tobj lists them beside
+        // the positions); an index out of range is an error like a vertex's.
+        let has_normals = !m.normal_indices.is_empty() && m.normal_indices.len() == m.indices.len();
+        let has_uvs = !m.texcoord_indices.is_empty() && m.texcoord_indices.len() == m.indices.len();
+        for (has, ids, len, what) in [
+            (has_normals, &m.normal_indices, m.normals.len() / 3, "normal"),
+            (has_uvs, &m.texcoord_indices, m.texcoords.len() / 2, "texture coordinate"),
+        ] {
+            if let Some(&i) = ids.iter().take(if has { ids.len() } else { 0 }).find(|&&i| i as usize >= len) {
+                return Err(mesh_err(format!("object `{}`: {what} index {} out of range ({len})", model.name, i + 1)));
+            }
+        }
+        let normal = |i: u32| {
+            let i = i as usize * 3;
+            Vec3A::new(m.normals[i], m.normals[i + 1], m.normals[i + 2])
+        };
+        let texcoord = |i: u32| {
+            let i = i as usize * 2;
+            Vec2::new(m.texcoords[i], m.texcoords[i + 1])
+        };
         // Face sizes: empty means all triangles.
         let arities: Box<dyn Iterator<Item = usize>> = if m.face_arities.is_empty() {
             Box::new(std::iter::repeat_n(3, m.indices.len() / 3))
@@ -627,7 +881,7 @@ fn obj_into(
             start += arity;
             faces += 1;
             if arity < 3 {
-                findings.short_faces += 1;
+                geometry.findings.short_faces += 1;
                 continue;
             }
             if arity > MAX_POLYGON_VERTICES {
@@ -641,14 +895,22 @@ fn obj_into(
             polygon.extend(ids.iter().map(|&i| vertex(i)));
             ears.clear();
             if !crate::geometry::polygon::triangulate(&polygon, &mut ears) {
-                findings.non_simple += 1;
+                geometry.findings.non_simple += 1;
             }
+            let face_range = start - arity..start;
+            let face_normals = has_normals.then(|| &m.normal_indices[face_range.clone()]);
+            let face_uvs = has_uvs.then(|| &m.texcoord_indices[face_range]);
             for e in &ears {
                 let mut t = [polygon[e[0]], polygon[e[1]], polygon[e[2]]];
+                let mut corners = Corners {
+                    normals: face_normals.map(|ids| e.map(|k| normal(ids[k]) * if reverse { -1.0 } else { 1.0 })),
+                    uvs: face_uvs.map(|ids| e.map(|k| texcoord(ids[k]))),
+                };
                 if reverse {
                     t.swap(1, 2);
+                    corners.swap();
                 }
-                push_triangle(triangles, triangle_material, findings, t, material).map_err(mesh_err)?;
+                push_triangle(geometry, t, corners, material).map_err(mesh_err)?;
             }
         }
     }
@@ -656,4 +918,173 @@ fn obj_into(
         return Err(mesh_err("no faces: an OBJ file lists faces as `f` lines".into()));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{Hit, Ray};
+
+    /// A folder of its own under the temporary directory, holding `files`.
+    fn folder(name: &str, files: &[(&str, &str)]) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("zvidpt-load-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for (file, text) in files {
+            std::fs::write(dir.join(file), text).unwrap();
+        }
+        dir
+    }
+
+    const HEAD: &str =
+        "[camera]\neye = [0.0, 0.0, 3.0]\nlook_at = [0.0, 0.0, 0.0]\nfov_y = 40.0\nwidth = 8\nheight = 8\n\n";
+
+    /// The interaction of a ray towards `target` from `from` with triangle `prim` (the
+    /// barycentric coordinates worked out here).
+    fn hit(scene: &Scene, prim: u32, from: Vec3A, target: Vec3A) -> crate::scene::SurfaceInteraction {
+        let t = scene.triangles[prim as usize];
+        let (e1, e2, d) = (t[1] - t[0], t[2] - t[0], target - t[0]);
+        let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+        let (d1, d2) = (d.dot(e1), d.dot(e2));
+        let den = d11 * d22 - d12 * d12;
+        let (u, v) = ((d22 * d1 - d12 * d2) / den, (d11 * d2 - d12 * d1) / den);
+        let ray = Ray::new(from, (target - from).normalize());
+        scene.interaction(&ray, &Hit { t: (target - from).length(), u, v, prim })
+    }
+
+    /// An OBJ quad in z = 0 with vertex normals leaning outwards (±x) and texture
+    /// coordinates; a checkerboard of 2×2 squares on it.
+    const QUAD: &str = "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n\
+        vn -0.6 0 0.8\nvn 0.6 0 0.8\n\
+        vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+        f 1/1/1 2/2/2 3/3/2 4/4/1\n";
+
+    #[test]
+    fn obj_normals_and_texture_coordinates_reach_the_interaction() {
+        let scene_text = format!(
+            "{HEAD}[textures.checks]\ntype = \"checkerboard\"\ncolor0 = [0.9, 0.1, 0.1]\ncolor1 = [0.1, 0.1, 0.9]\n\
+             scale = [2.0, 2.0]\n\n[materials.m]\ndiffuse_texture = \"checks\"\nemission = [1.0, 1.0, 1.0]\n\n\
+             [[mesh]]\nobj = \"quad.obj\"\nmaterial = \"m\"\n"
+        );
+        let dir = folder("quad", &[("quad.obj", QUAD), ("scene.toml", &scene_text)]);
+        let scene = Scene::load(&dir).unwrap();
+        assert_eq!(scene.attributes.normals.len(), 2);
+        assert_eq!(scene.attributes.uvs.len(), 2);
+        let eye = Vec3A::new(0.0, 0.0, 3.0);
+        // At x = ±0.5 the interpolated normal leans a quarter of the way to its corners'.
+        let holds = |prim: usize, p: Vec3A| {
+            let t = scene.triangles[prim];
+            let n = (t[1] - t[0]).cross(t[2] - t[0]);
+            (0..3).all(|k| (t[(k + 1) % 3] - t[k]).cross(p - t[k]).dot(n) >= 0.0)
+        };
+        for (x, y) in [(-0.5f32, -0.6f32), (0.5, -0.6), (-0.5, 0.6), (0.5, 0.6)] {
+            let target = Vec3A::new(x, y, 0.0);
+            let prim = (0..2).find(|&i| holds(i, target)).expect("a triangle holds the point");
+            let si = hit(&scene, prim as u32, eye, target);
+            assert!(si.shaded);
+            let want = Vec3A::new(0.6 * x, 0.0, 0.8).normalize();
+            assert!((si.ns - want).length() < 1e-5, "at x {x}: ns {} want {want}", si.ns);
+            // uv = ((x+1)/2, (y+1)/2): with 2×2 squares, colour0 where both halves agree.
+            let u = Vec2::new((x + 1.0) / 2.0, (y + 1.0) / 2.0);
+            let want = if (u.x < 0.5) == (u.y < 0.5) { Vec3A::new(0.9, 0.1, 0.1) } else { Vec3A::new(0.1, 0.1, 0.9) };
+            assert_eq!(si.material.lambertian(), Some(want), "at {target}");
+        }
+        // Seen from behind: the shading normal turns with the geometric one.
+        let prim = (0..2).find(|&i| holds(i, Vec3A::new(0.5, -0.6, 0.0))).unwrap() as u32;
+        let si = hit(&scene, prim, Vec3A::new(0.0, 0.0, -3.0), Vec3A::new(0.5, -0.6, 0.0));
+        assert!(si.shaded && si.ns.z < 0.0 && si.ns.dot(si.n) > 0.0);
+        // Seen from a grazing angle beneath the shading normal: the geometric normal is used.
+        let si = hit(&scene, prim, Vec3A::new(-40.0, -0.6, 1.0), Vec3A::new(0.5, -0.6, 0.0));
+        assert!(!si.shaded && si.ns == si.n, "{:?}", si.ns);
+        std::fs::remove_dir_all(dir).ok();
+    }
+
+    #[test]
+    fn vertex_normals_decide_the_outside() {
+        // Wound to face −z, but its normals say +z: turned (pbrt-v4's rule), so it emits
+        // towards +z.
+        let obj = "v -1 -1 0\nv -1 1 0\nv 1 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\n";
+        let text =
+            format!("{HEAD}[materials.m]\nemission = [1.0, 1.0, 1.0]\n\n[[mesh]]\nobj = \"t.obj\"\nmaterial = \"m\"\n");
+        let dir = folder("outside", &[("t.obj", obj), ("scene.toml", &text)]);
+        let scene = Scene::load(&dir).unwrap();
+        assert_eq!(scene.normals[0], Vec3A::Z);
+        // And with `reverse_winding`, normals and winding both turn.
+        let text = text.replace("material = \"m\"", "material = \"m\"\nreverse_winding = true");
+        std::fs::write(dir.join("scene.toml"), text).unwrap();
+        let scene = Scene::load(&dir).unwrap();
+        assert_eq!(scene.normals[0], Vec3A::NEG_Z);
+        assert_eq!(scene.attributes.normals[0][0], Vec3A::NEG_Z);
+        std::fs::remove_dir_all(dir).ok();
+    }
+
+    #[test]
+    fn spheres_are_smooth_and_mapped_like_mitsubas() {
+        let text = format!(
+            "{HEAD}[materials.m]\ndiffuse = [0.5, 0.5, 0.5]\n\n[[shape]]\ntype = \"sphere\"\nmaterial = \"m\"\n\
+             center = [0.2, 0.1, -0.3]\nradius = 0.5\nsubdivisions = 3\nrotate = {{ axis = [1.0, 0.0, 0.0], angle = 90.0 }}\n"
+        );
+        let scene = Scene::parse(&text, Path::new("sphere/scene.toml")).unwrap();
+        let rotation = glam::Mat3A::from_axis_angle(glam::Vec3::X, 90f32.to_radians());
+        let centre = rotation * Vec3A::new(0.2, 0.1, -0.3);
+        for (i, t) in scene.triangles.iter().enumerate() {
+            for (p, n) in t.iter().zip(scene.attributes.normals[i]) {
+                assert!((n - (*p - centre).normalize()).length() < 1e-5);
+            }
+            let u = scene.attributes.uvs[i].map(|c| c.x);
+            let span =
+                u.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b)) - u.iter().fold(f32::INFINITY, |a, &b| a.min(b));
+            assert!(span < 0.3, "triangle {i} spans u {u:?}");
+        }
+        // At a triangle's centroid, uv is (φ/2π, θ/π) of the direction in the sphere's own
+        // frame, within the tessellation's error (u modulo 1 across the seam).
+        for (i, t) in scene.triangles.iter().enumerate().step_by(37) {
+            let c = (t[0] + t[1] + t[2]) / 3.0;
+            let uv = scene.attributes.uvs[i].iter().fold(Vec2::ZERO, |a, &b| a + b) / 3.0;
+            let local = rotation.transpose() * (c - centre).normalize();
+            let phi = local.y.atan2(local.x).rem_euclid(std::f32::consts::TAU);
+            let theta = local.z.acos();
+            let du = (uv.x - phi / std::f32::consts::TAU).rem_euclid(1.0);
+            let du = du.min(1.0 - du);
+            // Near the poles u is ill-defined (the pole corner takes the others' mean).
+            let polar = theta.sin() < 0.3;
+            assert!((polar || du < 0.02) && (uv.y - theta / std::f32::consts::PI).abs() < 0.02, "triangle {i}: {uv}");
+        }
+        // Rectangles: (x+1)/2, (y+1)/2.
+        let text = format!("{HEAD}[materials.m]\n\n[[shape]]\ntype = \"rectangle\"\nmaterial = \"m\"\n");
+        let scene = Scene::parse(&text, Path::new("rect/scene.toml")).unwrap();
+        for (t, uv) in scene.triangles.iter().zip(&scene.attributes.uvs) {
+            for k in 0..3 {
+                assert_eq!(uv[k], Vec2::new(t[k].x + 1.0, t[k].y + 1.0) * 0.5);
+            }
+        }
+        assert!(scene.attributes.normals.is_empty());
+    }
+
+    #[test]
+    fn texture_keys_are_checked() {
+        let with = |materials: &str| {
+            let text = format!(
+                "{HEAD}[textures.c]\ntype = \"checkerboard\"\n\n{materials}\n\n[[shape]]\ntype = \"rectangle\"\nmaterial = \"m\"\n"
+            );
+            Scene::parse(&text, Path::new("t/scene.toml")).map(|_| ()).map_err(|e| e.to_string())
+        };
+        assert!(with("[materials.m]\ndiffuse_texture = \"c\"").is_ok());
+        assert!(
+            with("[materials.m]\ntype = \"conductor\"\nroughness_texture = \"c\"\nspecular_texture = \"c\"").is_ok()
+        );
+        let cases = [
+            ("[materials.m]\ndiffuse_texture = \"nope\"", "unknown texture `nope`"),
+            ("[materials.m]\nroughness_texture = \"c\"", "`roughness_texture` does not apply to type \"diffuse\""),
+            ("[materials.m]\ntype = \"thindielectric\"\nroughness_texture = \"c\"", "does not apply"),
+            ("[materials.m]\ntype = \"conductor\"\ndiffuse_texture = \"c\"", "does not apply"),
+            ("[materials.m]\n[textures.b]\ntype = \"bitmap\"", "a bitmap needs `file`"),
+            ("[materials.m]\n[textures.b]\ntype = \"checkerboard\"\nfile = \"x.png\"", "are for bitmaps"),
+            ("[materials.m]\n[textures.b]\ntype = \"checkerboard\"\nscale = [0.0, 1.0]", "`scale` must lie"),
+            ("[materials.m]\n[textures.b]\ntype = \"bitmap\"\nfile = \"missing.png\"", "missing.png"),
+        ];
+        for (materials, want) in cases {
+            let e = with(materials).unwrap_err();
+            assert!(e.contains(want), "{materials}: {e}");
+        }
+    }
 }

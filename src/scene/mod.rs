@@ -14,6 +14,8 @@ use crate::geometry::{Frame, Hit, Ray, Vec2, Vec3A, barycentric_error, luminance
 use crate::light::envmap::Environment;
 use crate::light::point::PointLight;
 use crate::material::Bsdf;
+use crate::material::microfacet::Ggx;
+use crate::material::texture::Texture;
 use std::f32::consts::PI;
 use std::path::PathBuf;
 
@@ -30,13 +32,58 @@ pub struct Material {
     /// Emit on both sides of the surface (pbrt's `twosided` area light), not only along the
     /// geometric normal.
     pub two_sided_emission: bool,
+    /// Textures (indices into [`Scene::textures`]) that replace parameters of `bsdf` at each
+    /// hit.
+    pub textures: TextureSlots,
+}
+
+/// The textures a material reads at each hit, as indices into [`Scene::textures`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TextureSlots {
+    /// The reflectance: a diffuse surface's, a plastic's base, a conductor's `specular` factor.
+    pub reflectance: Option<u16>,
+    /// The GGX `alpha` of a rough conductor, dielectric or plastic (its luminance, clamped to
+    /// `[MIN_ALPHA, 1]`: a textured surface stays rough everywhere).
+    pub roughness: Option<u16>,
+}
+
+impl TextureSlots {
+    #[inline]
+    #[must_use]
+    pub fn any(&self) -> bool {
+        self.reflectance.is_some() || self.roughness.is_some()
+    }
+}
+
+/// What a mesh's vertices carry besides positions, per triangle (parallel to
+/// [`Scene::triangles`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Attributes {
+    /// Shading normals at the three corners (unit), interpolated across the triangle; all
+    /// zero for a triangle without. Empty when no triangle has them.
+    pub normals: Vec<[Vec3A; 3]>,
+    /// Texture coordinates at the three corners. Empty when no triangle has them; a triangle
+    /// without gets `(0,0), (1,0), (0,1)`, so that `(u, v)` are its barycentric coordinates of
+    /// corners 1 and 2, as in Mitsuba 3.
+    pub uvs: Vec<[Vec2; 3]>,
+}
+
+impl Attributes {
+    /// Texture coordinates of a triangle without any.
+    pub const BARYCENTRIC_UV: [Vec2; 3] = [Vec2::ZERO, Vec2::X, Vec2::Y];
 }
 
 impl Material {
     /// A two-sided Lambertian reflector of `reflectance` that emits `emission`.
     #[must_use]
     pub fn diffuse(reflectance: Vec3A, emission: Vec3A) -> Self {
-        Self { bsdf: Bsdf::Diffuse { reflectance }, emission, two_sided: true, two_sided_emission: false }
+        Self {
+            bsdf: Bsdf::Diffuse { reflectance },
+            emission,
+            two_sided: true,
+            two_sided_emission: false,
+            textures: TextureSlots { reflectance: None, roughness: None },
+        }
     }
 
     #[inline]
@@ -77,6 +124,10 @@ pub struct Scene {
     pub normals: Vec<Vec3A>,
     pub triangle_material: Vec<u32>,
     pub materials: Vec<Material>,
+    /// Shading normals and texture coordinates of the meshes that have them.
+    pub attributes: Attributes,
+    /// The textures materials read ([`Material::textures`]).
+    pub textures: Vec<Texture>,
     emitters: Emitters,
     /// Point and spot lights, and the environment.
     pub lights: Lights,
@@ -132,9 +183,17 @@ pub struct SurfaceInteraction {
     /// The geometric normal turned to face `wo`: the side light is gathered on (photon
     /// lookups, guide cells, NEE's choice of emitter).
     pub n: Vec3A,
+    /// The shading normal (interpolated from the mesh's vertex normals), on the side of `n`;
+    /// `n` itself where the mesh has none, or where `wo` lies below it or it below the
+    /// surface (the usual fix-up: the geometric normal never lets a direction leak through).
+    pub ns: Vec3A,
+    /// Whether `ns` differs from `n`: directions are then checked against both
+    /// ([`SurfaceInteraction::consistent`]).
+    pub shaded: bool,
     /// Unit direction towards where the ray came from.
     pub wo: Vec3A,
     pub prim: u32,
+    /// The material with its textures read at this hit.
     pub material: Material,
 }
 
@@ -151,13 +210,14 @@ impl SurfaceInteraction {
         }
     }
 
-    /// The normal of the BSDF's local frame: `n` for an opaque material (seen from behind, a
-    /// one-sided one is black: [`Scene::interaction`]), the geometric normal for one that
-    /// transmits (`wo` below it: seen from inside).
+    /// The normal of the BSDF's local frame: the shading normal `ns` for an opaque material
+    /// (seen from behind, a one-sided one is black: [`Scene::interaction`]); for one that
+    /// transmits, `ns` turned to the side of the geometric normal (`wo` below it: seen from
+    /// inside).
     #[inline]
     #[must_use]
     pub fn bsdf_normal(&self) -> Vec3A {
-        if self.material.bsdf.transmits() { self.ng } else { self.n }
+        if self.material.bsdf.transmits() && self.ng.dot(self.wo) < 0.0 { -self.ns } else { self.ns }
     }
 
     /// The BSDF's local frame at this hit.
@@ -168,11 +228,39 @@ impl SurfaceInteraction {
     }
 
     /// The frame around `n` (photon lookups and guides work in it), given the BSDF's frame:
-    /// the same frame unless the material transmits.
+    /// the same frame unless the material transmits or the normal is shaded.
     #[inline]
     #[must_use]
     pub fn gather_frame(&self, bsdf_frame: &Frame) -> Frame {
-        if self.material.bsdf.transmits() { Frame::from_normal(self.n) } else { *bsdf_frame }
+        if self.material.bsdf.transmits() || self.shaded { Frame::from_normal(self.n) } else { *bsdf_frame }
+    }
+
+    /// Whether world direction `dir`, of local height `local_z` in the BSDF's frame, leaves on
+    /// the side the BSDF means: reflected directions above the surface, refracted ones below
+    /// it, by the geometric normal. Only shading normals can make them disagree; a direction
+    /// that does scatters nothing (its BSDF value is taken as 0 by every strategy alike, so
+    /// the estimators stay unbiased for that BSDF).
+    #[inline]
+    #[must_use]
+    pub fn consistent(&self, dir: Vec3A, local_z: f32) -> bool {
+        if !self.shaded {
+            return true;
+        }
+        if self.material.bsdf.transmits() {
+            // The BSDF's frame is on the geometric normal's side.
+            (dir.dot(self.ng) > 0.0) == (local_z > 0.0)
+        } else {
+            dir.dot(self.n) > 0.0
+        }
+    }
+
+    /// For a Lambertian surface sampled around the geometric normal (`cos = dir·n > 0`): the
+    /// factor `cosθs / cos` that turns its weight into the one of the shading normal (0 below
+    /// it; 1 without shading normals).
+    #[inline]
+    #[must_use]
+    pub fn shading_ratio(&self, dir: Vec3A, cos: f32) -> f32 {
+        if self.shaded { (self.ns.dot(dir) / cos).max(0.0) } else { 1.0 }
     }
 
     /// A ray leaving the surface in direction `dir`, origin offset by the error bound.
@@ -280,6 +368,8 @@ impl Scene {
             normals,
             triangle_material,
             materials,
+            attributes: Attributes::default(),
+            textures: Vec::new(),
             emitters,
             lights,
             groups,
@@ -324,12 +414,33 @@ impl Scene {
             t.iter().flat_map(|v| v.to_array()).for_each(|x| eat(x.to_bits()));
         }
         self.triangle_material.iter().for_each(|&m| eat(m));
+        // Attributes and textures only where a scene has them (older hashes stay valid).
+        for n in &self.attributes.normals {
+            n.iter().flat_map(|v| v.to_array()).for_each(|x| eat(x.to_bits()));
+        }
+        for t in &self.attributes.uvs {
+            t.iter().flat_map(|v| v.to_array()).for_each(|x| eat(x.to_bits()));
+        }
+        for t in &self.textures {
+            let (kind, values): (String, &[Vec3A]) = match t {
+                Texture::Constant(c) => ("constant".into(), std::slice::from_ref(c)),
+                Texture::Checkerboard { a, b, scale } => (format!("checkerboard {a} {b} {scale}"), &[] as &[Vec3A]),
+                Texture::Bitmap(b) => {
+                    (format!("bitmap {}x{} {:?} {:?}", b.width, b.height, b.wrap, b.filter), &b.texels)
+                }
+            };
+            kind.bytes().for_each(|b| eat(u32::from(b)));
+            values.iter().flat_map(|v| v.to_array()).for_each(|x| eat(x.to_bits()));
+        }
         for m in &self.materials {
             // Two-sided Lambertian materials hash as they always have (cached references
             // stay valid); any other by its full description.
             match m.lambertian() {
                 Some(rho) if m.two_sided => rho.to_array().into_iter().for_each(|x| eat(x.to_bits())),
                 _ => format!("{:?}/{}", m.bsdf, m.two_sided).bytes().for_each(|b| eat(u32::from(b))),
+            }
+            if m.textures.any() {
+                format!("{:?}", m.textures).bytes().for_each(|b| eat(u32::from(b)));
             }
             m.emission.to_array().into_iter().for_each(|x| eat(x.to_bits()));
             if m.two_sided_emission {
@@ -423,11 +534,51 @@ impl Scene {
         let front = ng.dot(wo) >= 0.0;
         let n = if front { ng } else { -ng };
         let mut material = *self.material_of(hit.prim);
+        if material.textures.any() {
+            self.read_textures(&mut material, hit.prim as usize, b);
+        }
         if !front && !material.two_sided && !material.bsdf.transmits() {
             // A one-sided surface seen from behind scatters nothing (Mitsuba 3).
             material.bsdf = Bsdf::Diffuse { reflectance: Vec3A::ZERO };
         }
-        SurfaceInteraction { p, p_err: barycentric_error(b, v), ng, n, wo, prim: hit.prim, material }
+        let (mut ns, mut shaded) = (n, false);
+        if let Some(corners) = self.attributes.normals.get(hit.prim as usize)
+            && corners[0] != Vec3A::ZERO
+        {
+            let s = (corners[0] * b[0] + corners[1] * b[1] + corners[2] * b[2]).normalize_or_zero();
+            let s = if front { s } else { -s };
+            if s.dot(wo) > 0.0 && s.dot(n) > 0.0 {
+                (ns, shaded) = (s, true);
+            }
+        }
+        SurfaceInteraction { p, p_err: barycentric_error(b, v), ng, n, ns, shaded, wo, prim: hit.prim, material }
+    }
+
+    /// Replaces the parameters of `material` its textures drive by their values at
+    /// barycentric coordinates `b` of triangle `prim`.
+    fn read_textures(&self, material: &mut Material, prim: usize, b: [f32; 3]) {
+        let t = self.attributes.uvs.get(prim).unwrap_or(&Attributes::BARYCENTRIC_UV);
+        let uv = t[0] * b[0] + t[1] * b[1] + t[2] * b[2];
+        let slots = material.textures;
+        if let Some(i) = slots.reflectance {
+            let r = self.textures[i as usize].eval(uv).clamp(Vec3A::ZERO, Vec3A::ONE);
+            match &mut material.bsdf {
+                Bsdf::Diffuse { reflectance } => *reflectance = r,
+                Bsdf::Plastic { diffuse, .. } => *diffuse = r,
+                Bsdf::Conductor { specular, .. } => *specular = r,
+                Bsdf::Dielectric { .. } => {}
+            }
+        }
+        if let Some(i) = slots.roughness {
+            let alpha = luminance(self.textures[i as usize].eval(uv)).clamp(Ggx::MIN_ALPHA, 1.0);
+            let alpha = if alpha.is_nan() { 1.0 } else { alpha };
+            match &mut material.bsdf {
+                Bsdf::Conductor { roughness, .. } | Bsdf::Dielectric { roughness, thin: false, .. } => {
+                    *roughness = Some(Ggx::new(alpha));
+                }
+                _ => {}
+            }
+        }
     }
 
     /// The start of a photon path: a light by power (`u_pick`), then a point on it
