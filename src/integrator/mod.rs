@@ -115,9 +115,22 @@ pub struct Scatter {
 /// viewer): two numbers for the direction, one for the lobe.
 #[inline]
 pub fn sample_bsdf(si: &SurfaceInteraction, frame: &Frame, wi: Vec3A, rng: &mut SampleStream) -> Option<Scatter> {
-    // A Lambertian surface has one lobe: no number to choose it.
-    let u_lobe = if si.material.lambertian().is_some() { 0.5 } else { rng.next_f32() };
-    let s = si.material.bsdf.sample(wi, u_lobe, rng.next_2d())?;
+    // A Lambertian surface has one lobe (no number to choose it) and needs no call into the
+    // BSDF's general sampler: cosine sampling, inline.
+    if let Some(rho) = si.material.lambertian() {
+        let wo = crate::geometry::warp::cosine_hemisphere(rng.next_2d());
+        if wo.z <= 0.0 {
+            return None;
+        }
+        let dir = frame.to_world(wo);
+        return si.consistent(dir, wo.z).then_some(Scatter {
+            dir,
+            weight: rho,
+            pdf: wo.z * std::f32::consts::FRAC_1_PI,
+            delta: false,
+        });
+    }
+    let s = si.material.bsdf.sample(wi, rng.next_f32(), rng.next_2d())?;
     let dir = frame.to_world(s.wo);
     si.consistent(dir, s.wo.z).then_some(Scatter { dir, weight: s.weight, pdf: s.pdf, delta: s.delta })
 }
