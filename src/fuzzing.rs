@@ -30,6 +30,11 @@ pub fn obj(data: &[u8]) {
     }
 }
 
+/// PLY meshes (ASCII or binary), parsed and triangulated.
+pub fn ply(data: &[u8]) {
+    let _ = crate::scene::ply_triangles(data);
+}
+
 /// EXR input of `diff`, `info`, `converge` and `reference`.
 pub fn exr(data: &[u8]) {
     let _ = crate::film::read_exr_from(std::io::Cursor::new(data), Path::new("fuzz.exr"));

@@ -33,6 +33,11 @@ fn obj_corpus() {
 }
 
 #[test]
+fn ply_corpus() {
+    assert!(replay("ply", zvidpt::fuzzing::ply) >= 3);
+}
+
+#[test]
 fn exr_corpus() {
     assert!(replay("exr", zvidpt::fuzzing::exr) >= 1);
 }

@@ -170,7 +170,9 @@ pub struct TextureDescription {
 #[serde(deny_unknown_fields)]
 pub struct MeshDescription {
     /// OBJ file, relative to the scene file's folder.
-    pub obj: String,
+    pub obj: Option<String>,
+    /// Or a PLY file (ASCII or binary; needs `material`).
+    pub ply: Option<String>,
     /// Assign this material to every face of the mesh (overrides the OBJ's `usemtl`).
     pub material: Option<String>,
     /// Reverse every triangle's winding, flipping geometric normals and emitting sides.

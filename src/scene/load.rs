@@ -120,6 +120,14 @@ pub fn obj_triangles(obj: &str, mtl: &str) -> Result<usize> {
     Ok(meshes.geometry.triangles.len())
 }
 
+/// Fuzzing and tests: loads PLY bytes as a scene mesh would be; returns the triangle count.
+#[doc(hidden)]
+pub fn ply_triangles(bytes: &[u8]) -> Result<usize> {
+    let mut geometry = Geometry::default();
+    ply_into(Path::new("fuzz.ply"), bytes, 0, false, &mut geometry)?;
+    Ok(geometry.triangles.len())
+}
+
 fn invalid(path: &Path, message: impl Into<String>) -> Error {
     Error::InvalidScene { path: path.to_path_buf(), message: message.into() }
 }
@@ -356,21 +364,33 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
     let folder = path.parent().unwrap_or(Path::new("."));
     let mut sources = Vec::new();
     for mesh in &d.meshes {
-        if mesh.obj.is_empty() {
-            return Err(invalid(path, "a [[mesh]] has an empty `obj` path"));
+        let (file, is_ply) = match (&mesh.obj, &mesh.ply) {
+            (Some(f), None) => (f, false),
+            (None, Some(f)) => (f, true),
+            _ => return Err(invalid(path, "a [[mesh]] names one file: `obj = \"...\"` or `ply = \"...\"`")),
+        };
+        if file.is_empty() {
+            return Err(invalid(path, "a [[mesh]] has an empty file path"));
         }
-        let obj_path = folder.join(&mesh.obj);
-        sources.push(obj_path.clone());
+        let mesh_path = folder.join(file);
+        sources.push(mesh_path.clone());
         let override_id = match &mesh.material {
             Some(name) => Some(
                 *meshes
                     .by_name
                     .get(name)
-                    .ok_or_else(|| invalid(path, format!("mesh `{}`: unknown material `{name}`", mesh.obj)))?,
+                    .ok_or_else(|| invalid(path, format!("mesh `{file}`: unknown material `{name}`")))?,
             ),
             None => None,
         };
-        load_obj(&obj_path, override_id, mesh.reverse_winding, &mut meshes)?;
+        if is_ply {
+            let material = override_id.ok_or_else(|| {
+                invalid(path, format!("mesh `{file}`: a PLY mesh needs `material = \"...\"` (PLY has no materials)"))
+            })?;
+            load_ply(&mesh_path, material, mesh.reverse_winding, &mut meshes.geometry)?;
+        } else {
+            load_obj(&mesh_path, override_id, mesh.reverse_winding, &mut meshes)?;
+        }
     }
     for (k, shape) in d.shapes.iter().enumerate() {
         add_shape(path, k, shape, &mut meshes)?;
@@ -741,6 +761,64 @@ struct Meshes {
     geometry: Geometry,
 }
 
+/// Adds the triangles of the PLY file `ply_path`, all of `material` (polygons triangulated as
+/// OBJ faces are; vertex normals and texture coordinates kept where every vertex has them).
+fn load_ply(ply_path: &Path, material: u32, reverse: bool, geometry: &mut Geometry) -> Result<()> {
+    let bytes = read_bounded(ply_path, MAX_MESH_BYTES, "mesh (PLY) file")?;
+    ply_into(ply_path, &bytes, material, reverse, geometry)
+}
+
+/// Adds the triangles of PLY bytes `bytes` (named `ply_path` in errors).
+fn ply_into(ply_path: &Path, bytes: &[u8], material: u32, reverse: bool, geometry: &mut Geometry) -> Result<()> {
+    let mesh_err = |message: String| Error::Mesh { path: ply_path.to_path_buf(), message };
+    let mesh = super::ply::parse(bytes).map_err(|m| mesh_err(format!("not a valid PLY file ({m})")))?;
+    if let Some(i) = mesh.positions.iter().position(|p| !p.is_finite()) {
+        return Err(mesh_err(format!("vertex {} has a non-finite coordinate", i + 1)));
+    }
+    let n = mesh.positions.len();
+    let flip = if reverse { -1.0 } else { 1.0 };
+    let (mut polygon, mut ears) = (Vec::new(), Vec::new());
+    for (f, face) in mesh.faces.iter().enumerate() {
+        if let Some(&i) = face.iter().find(|&&i| i < 0 || i as usize >= n) {
+            return Err(mesh_err(format!("face {}: vertex index {i} out of range ({n} vertices)", f + 1)));
+        }
+        if face.len() < 3 {
+            geometry.findings.short_faces += 1;
+            continue;
+        }
+        if face.len() > MAX_POLYGON_VERTICES {
+            return Err(mesh_err(format!(
+                "face {} has {} vertices (at most {MAX_POLYGON_VERTICES})",
+                f + 1,
+                face.len()
+            )));
+        }
+        polygon.clear();
+        polygon.extend(face.iter().map(|&i| mesh.positions[i as usize]));
+        ears.clear();
+        if !crate::geometry::polygon::triangulate(&polygon, &mut ears) {
+            geometry.findings.non_simple += 1;
+        }
+        for e in &ears {
+            let corner = |k: usize| face[e[k]] as usize;
+            let mut t = [polygon[e[0]], polygon[e[1]], polygon[e[2]]];
+            let mut corners = Corners {
+                normals: mesh.normals.as_ref().map(|ns| [0, 1, 2].map(|k| ns[corner(k)] * flip)),
+                uvs: mesh.uvs.as_ref().map(|uvs| [0, 1, 2].map(|k| uvs[corner(k)])),
+            };
+            if reverse {
+                t.swap(1, 2);
+                corners.swap();
+            }
+            push_triangle(geometry, t, corners, material).map_err(mesh_err)?;
+        }
+    }
+    if mesh.faces.is_empty() {
+        return Err(mesh_err("no faces".into()));
+    }
+    Ok(())
+}
+
 /// Adds the triangles of the OBJ file `obj_path` (its `mtllib` files read beside it).
 fn load_obj(obj_path: &Path, override_id: Option<u32>, reverse: bool, meshes: &mut Meshes) -> Result<()> {
     if obj_path.as_os_str().is_empty() || obj_path.file_name().is_none() {
@@ -1088,5 +1166,58 @@ mod tests {
             let e = with(materials).unwrap_err();
             assert!(e.contains(want), "{materials}: {e}");
         }
+    }
+}
+
+#[cfg(test)]
+mod ply_tests {
+    use super::*;
+
+    /// The OBJ quad of the tests above as a binary PLY (normals, texture coordinates, one
+    /// quad face): the same triangles and attributes, and `reverse_winding` turns both alike.
+    #[test]
+    fn a_ply_mesh_loads_like_the_same_obj() {
+        let dir = std::env::temp_dir().join(format!("zvidpt-load-ply-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let obj = "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvn -0.6 0 0.8\nvn 0.6 0 0.8\n\
+                   vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1/1 2/2/2 3/3/2 4/4/1\n";
+        let mut ply = b"ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\n\
+            property float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\n\
+            property float s\nproperty float t\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+            .to_vec();
+        for v in [
+            [-1.0f32, -1.0, 0.0, -0.6, 0.0, 0.8, 0.0, 0.0],
+            [1.0, -1.0, 0.0, 0.6, 0.0, 0.8, 1.0, 0.0],
+            [1.0, 1.0, 0.0, 0.6, 0.0, 0.8, 1.0, 1.0],
+            [-1.0, 1.0, 0.0, -0.6, 0.0, 0.8, 0.0, 1.0],
+        ] {
+            v.iter().for_each(|c| ply.extend(c.to_le_bytes()));
+        }
+        ply.push(4);
+        [0i32, 1, 2, 3].iter().for_each(|i| ply.extend(i.to_le_bytes()));
+        std::fs::write(dir.join("q.obj"), obj).unwrap();
+        std::fs::write(dir.join("q.ply"), &ply).unwrap();
+        let head = "[camera]\neye = [0.0, 0.0, 3.0]\nlook_at = [0.0, 0.0, 0.0]\nfov_y = 40.0\nwidth = 8\nheight = 8\n\n\
+                    [materials.m]\ndiffuse = [0.5, 0.5, 0.5]\n\n[[mesh]]\nmaterial = \"m\"\n";
+        for reverse in [false, true] {
+            let load = |file: &str| {
+                let text = format!("{head}{file}\nreverse_winding = {reverse}\n");
+                Scene::parse(&text, &dir.join("scene.toml")).unwrap()
+            };
+            let (a, b) = (load("obj = \"q.obj\""), load("ply = \"q.ply\""));
+            assert_eq!(a.triangles, b.triangles);
+            assert_eq!(a.attributes, b.attributes);
+            assert_eq!(a.normals, b.normals);
+            assert!(b.sources.contains(&dir.join("q.ply")));
+        }
+        // A PLY mesh needs a material; an index out of range is an error naming the face.
+        let e = Scene::parse(&head.replace("material = \"m\"\n", "ply = \"q.ply\"\n"), &dir.join("scene.toml"));
+        assert!(e.unwrap_err().to_string().contains("needs `material"));
+        let last = ply.len() - 4;
+        ply[last..].copy_from_slice(&9i32.to_le_bytes());
+        std::fs::write(dir.join("bad.ply"), &ply).unwrap();
+        let e = Scene::parse(&format!("{head}ply = \"bad.ply\"\n"), &dir.join("scene.toml")).unwrap_err().to_string();
+        assert!(e.contains("bad.ply") && e.contains("face 1: vertex index 9 out of range"), "{e}");
+        std::fs::remove_dir_all(dir).ok();
     }
 }

@@ -3,11 +3,12 @@
 mod camera;
 pub mod description;
 mod load;
+pub mod ply;
 pub mod shapes;
 
 pub use camera::Camera;
-pub use load::obj_triangles;
 pub(crate) use load::read_text;
+pub use load::{obj_triangles, ply_triangles};
 
 use crate::geometry::spherical::{self, SphericalTriangle};
 use crate::geometry::{Frame, Hit, Ray, Vec2, Vec3A, barycentric_error, luminance, offset_ray_origin, warp};
