@@ -120,7 +120,9 @@ pub(crate) fn trace_path<A: Accel>(
             break;
         }
         let frame = si.bsdf_frame();
-        let wi = frame.to_local(si.wo);
+        // The direction to the viewer in the BSDF's frame: a Lambertian surface's sampling
+        // and density need only that it lies above (the shading point is seen from there).
+        let wi = if si.material.lambertian().is_some() { Vec3A::Z } else { frame.to_local(si.wo) };
         let weigh = mis.at(&si.material);
         if !si.material.bsdf.is_delta() {
             radiance += throughput * direct_light(ctx, &si, &frame, wi, weigh, rng, scratch);

@@ -842,6 +842,7 @@ impl Scene {
     /// `∫ cosθ dω` over the triangle, estimated as Ω times the mean cosine warp weight (or, below
     /// [`spherical::MIN_SOLID_ANGLE`], as `A·cosθy/d²` at the centroid times the largest corner
     /// cosine).
+    #[inline]
     fn weight(&self, i: usize, x: Vec3A, n: Vec3A) -> f32 {
         if !self.in_front(i, x) {
             return 0.0;
