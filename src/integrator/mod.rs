@@ -35,6 +35,8 @@ pub struct RenderContext<'a, A: Accel> {
     /// time-budgeted render, whose iteration count came from the clock): with the count fixed,
     /// the pre-pass is a function of scene, options and seed alone.
     pub training_iterations: Option<u32>,
+    /// [`Scene::lambertian_only`], once per render.
+    pub lambertian_only: bool,
 }
 
 /// Per-tile tallies and scratch memory, owned by the tile being rendered: no shared counters

@@ -83,7 +83,14 @@ impl Integrator for PathTracer {
         rng: &mut SampleStream,
         scratch: &mut Scratch,
     ) -> Vec3A {
-        trace_path(ctx, pixel, rng, scratch, self.rr_depth, self.mis, sample_bsdf)
+        // On Lambertian scenes without an environment (the paper's) and without MIS at
+        // Lambertian vertices, NEE alone counts light past the first hit: the loop without
+        // the checks for emission found by BSDF sampling (same estimator, same bits).
+        if self.mis != Mis::All && ctx.lambertian_only {
+            trace_path::<A, true>(ctx, pixel, rng, scratch, self.rr_depth, self.mis, sample_bsdf)
+        } else {
+            trace_path::<A, false>(ctx, pixel, rng, scratch, self.rr_depth, self.mis, sample_bsdf)
+        }
     }
 }
 
@@ -94,8 +101,12 @@ impl Integrator for PathTracer {
 /// power heuristic against NEE, whose density there [`crate::scene::Scene::emitter_pdf`]
 /// replays (`sample_direction` must then return its true density); elsewhere only NEE counts
 /// light past the first hit, except behind delta lobes.
+///
+/// `NEE_ONLY` promises that no vertex weighs BSDF-found emission (`mis` off there) and that
+/// nothing is delta or seen beyond the scene, so that only NEE counts light past the first hit;
+/// the loop then skips those checks.
 #[inline(always)]
-pub(crate) fn trace_path<A: Accel>(
+pub(crate) fn trace_path<A: Accel, const NEE_ONLY: bool>(
     ctx: &RenderContext<A>,
     pixel: UVec2,
     rng: &mut SampleStream,
@@ -122,9 +133,9 @@ pub(crate) fn trace_path<A: Accel>(
         let frame = si.bsdf_frame();
         // The direction to the viewer in the BSDF's frame: a Lambertian surface's sampling
         // and density need only that it lies above (the shading point is seen from there).
-        let wi = if si.material.lambertian().is_some() { Vec3A::Z } else { frame.to_local(si.wo) };
-        let weigh = mis.at(&si.material);
-        if !si.material.bsdf.is_delta() {
+        let wi = if NEE_ONLY || si.material.lambertian().is_some() { Vec3A::Z } else { frame.to_local(si.wo) };
+        let weigh = if NEE_ONLY { MisAt::NONE } else { mis.at(&si.material) };
+        if NEE_ONLY || !si.material.bsdf.is_delta() {
             radiance += throughput * direct_light(ctx, &si, &frame, wi, weigh, rng, scratch);
         }
         if bounce >= rr_depth {
@@ -141,6 +152,9 @@ pub(crate) fn trace_path<A: Accel>(
         let ray = si.spawn_ray(s.dir);
         scratch.rays += 1;
         let Some(hit) = ctx.accel.intersect(&ray) else {
+            if NEE_ONLY {
+                break;
+            }
             // Escaped: the environment, counted as emission found by this direction is.
             let env = ctx.scene.environment(s.dir);
             if s.delta {
@@ -151,7 +165,7 @@ pub(crate) fn trace_path<A: Accel>(
             break;
         };
         let next = ctx.scene.interaction(&ray, &hit);
-        let emitted = next.emitted();
+        let emitted = if NEE_ONLY { Vec3A::ZERO } else { next.emitted() };
         if emitted != Vec3A::ZERO {
             if s.delta {
                 radiance += throughput * emitted;

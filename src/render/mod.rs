@@ -236,6 +236,7 @@ fn render_in_pool<A: Accel, I: Integrator>(
         time_limit,
         spp: settings.spp,
         training_iterations: resume.and_then(|r| r.training_iterations),
+        lambertian_only: scene.lambertian_only(),
     };
     let prepass = integrator.prepare(&ctx, settings.seed)?;
     let prepass_seconds = start.elapsed().as_secs_f64();

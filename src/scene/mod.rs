@@ -156,6 +156,11 @@ struct Emitters {
     index_of: Vec<u32>,
     /// Per emitter, whether it emits on both sides.
     two_sided: Vec<bool>,
+    /// Per emitter, its radiance and that radiance's luminance (NEE reads them for every
+    /// emitter it weighs: kept here, beside the other per-emitter data, not behind the
+    /// triangle's material).
+    emission: Vec<Vec3A>,
+    luminance: Vec<f32>,
 }
 
 /// Lights that are not emitting surfaces.
@@ -331,6 +336,8 @@ impl Scene {
                 emitters.prims.push(i as u32);
                 emitters.areas.push(area);
                 emitters.two_sided.push(m.two_sided_emission);
+                emitters.emission.push(m.emission);
+                emitters.luminance.push(luminance(m.emission));
                 let centroid = (t[0] + t[1] + t[2]) / 3.0;
                 let radius = t.iter().map(|&v| (v - centroid).length()).fold(0.0f32, f32::max);
                 emitters.bounds.push((centroid, radius));
@@ -469,6 +476,14 @@ impl Scene {
     #[must_use]
     pub fn material_of(&self, prim: u32) -> &Material {
         &self.materials[self.triangle_material[prim as usize] as usize]
+    }
+
+    /// Whether every material is Lambertian and nothing lies beyond the scene (no
+    /// environment): the paper's kind of scene, where only NEE needs to count light past the
+    /// first hit.
+    #[must_use]
+    pub fn lambertian_only(&self) -> bool {
+        self.lights.environment.is_none() && self.materials.iter().all(|m| m.lambertian().is_some())
     }
 
     /// Whether anything emits (surfaces, point lights, the environment).
@@ -849,7 +864,7 @@ impl Scene {
         }
         let prim = self.emitters.prims[i];
         let v = &self.triangles[prim as usize];
-        let lum = luminance(self.material_of(prim).emission);
+        let lum = self.emitters.luminance[i];
         if let Some((to, d2, radius)) = self.far(i, x) {
             // A ≈ A·cosθy/d²·cosθx at the centroid; every direction to the triangle is within
             // radius/d (in sine) of the centroid's, so its cosine at x is below
@@ -915,7 +930,7 @@ impl Scene {
             p,
             p_err,
             ng: self.normals[prim as usize],
-            emission: self.material_of(prim).emission,
+            emission: self.emitters.emission[i],
             inv_pdf,
         })
     }
@@ -989,7 +1004,7 @@ impl Scene {
             p,
             p_err,
             ng,
-            emission: self.material_of(prim).emission,
+            emission: self.emitters.emission[i],
             inv_pdf,
         })
     }
