@@ -45,7 +45,7 @@ pub fn first_hit_aovs<A: Accel>(scene: &Scene, accel: &A, seed: u64) -> Aovs {
                         if let Some(hit) = accel.intersect(&ray) {
                             let si = scene.interaction(&ray, &hit);
                             albedo += si.material.albedo();
-                            normal += si.n;
+                            normal += si.ns;
                             depth += f64::from((si.p - ray.origin).length());
                             hits += 1;
                         }

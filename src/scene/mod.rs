@@ -43,8 +43,8 @@ pub struct Material {
 pub struct TextureSlots {
     /// The reflectance: a diffuse surface's, a plastic's base, a conductor's `specular` factor.
     pub reflectance: Option<u16>,
-    /// The GGX `alpha` of a rough conductor, dielectric or plastic (its luminance, clamped to
-    /// `[MIN_ALPHA, 1]`: a textured surface stays rough everywhere).
+    /// The GGX `alpha` of a conductor or a dielectric that is not thin (its luminance,
+    /// clamped to `[MIN_ALPHA, 1]`: a textured surface stays rough everywhere).
     pub roughness: Option<u16>,
 }
 
