@@ -1,5 +1,6 @@
 """Writes the textured test assets of materials-mix: `tiles.png` (8x8 sRGB colours) and
-`vault.obj` (a half cylinder of 4 facets with smooth vertex normals and texture coordinates)."""
+`vault.obj` (a half cylinder of 4 facets with smooth vertex normals and texture coordinates) and
+`tilted.obj` (a floor tile whose normals lean towards the red wall)."""
 import math, struct, zlib
 
 def png(path, w, h, rgb):
@@ -34,3 +35,14 @@ for i in range(n):
     # Counter-clockwise seen from outside (+z side).
     lines.append(f"f {a}/{a}/{na} {a + 1}/{a + 1}/{na} {b + 1}/{b + 1}/{nb} {b}/{b}/{nb}")
 open("vault.obj", "w").write("\n".join(lines) + "\n")
+
+# A floor tile whose vertex normals all lean 40 degrees towards the red wall (-x): shading
+# normals that differ from the geometric one the same way everywhere, so that a weight using
+# the wrong cosine does not average out across the tile.
+s, c = math.sin(math.radians(40)), math.cos(math.radians(40))
+tile = ["# Floor tile with leaning vertex normals (make_assets.py)."]
+for x, z in ((0.05, 0.68), (0.05, 0.98), (0.6, 0.98), (0.6, 0.68)):
+    tile.append(f"v {x:.6f} -0.999 {z:.6f}")
+tile.append(f"vn {-s:.6f} {c:.6f} 0")
+tile.append("f 1//1 2//1 3//1 4//1")
+open("tilted.obj", "w").write("\n".join(tile) + "\n")
