@@ -5,7 +5,7 @@
 //! elements and properties are read past and ignored.
 use crate::geometry::{Vec2, Vec3A};
 use ply_rs_bw::parser::{Parser, Reader};
-use ply_rs_bw::ply::{BeginList, PropertyAccess, PropertyAccessResult};
+use ply_rs_bw::ply::{BeginList, ElementDef, Encoding, PropertyAccess, PropertyAccessResult, PropertyType, ScalarType};
 
 /// A mesh as the file lists it.
 #[derive(Debug, Default)]
@@ -157,7 +157,37 @@ impl PropertyAccess for Skip {
     }
 }
 
+/// Bytes of a binary scalar.
+fn scalar_bytes(t: &ScalarType) -> usize {
+    match t {
+        ScalarType::Char | ScalarType::UChar => 1,
+        ScalarType::Short | ScalarType::UShort => 2,
+        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
+        ScalarType::Double => 8,
+    }
+}
+
+/// The fewest bytes one entry of `element` takes in the payload: its scalars and list
+/// lengths in binary, a byte per property (at least one) in ASCII.
+fn min_entry_bytes(element: &ElementDef, binary: bool) -> usize {
+    if !binary {
+        return element.properties.len().max(1);
+    }
+    let bytes = element
+        .properties
+        .values()
+        .map(|p| match &p.data_type {
+            PropertyType::Scalar(t) | PropertyType::List(t, _) => scalar_bytes(t),
+        })
+        .sum::<usize>();
+    bytes.max(1)
+}
+
 /// Parses the bytes of a PLY file. Errors name the line where the parser knows it.
+///
+/// An element may declare no more entries than the file's bytes can hold: the parser would
+/// otherwise build every declared entry of an element without properties (found by fuzzing:
+/// 125 bytes declaring 68 M vertices took 2.4 GB).
 pub fn parse(bytes: &[u8]) -> Result<PlyMesh, String> {
     let mut reader = Reader::new(std::io::Cursor::new(bytes));
     let describe = |e: ply_rs_bw::parser::ParseError| match e.line() {
@@ -165,6 +195,18 @@ pub fn parse(bytes: &[u8]) -> Result<PlyMesh, String> {
         None => e.to_string(),
     };
     let header = Parser::<Vertex>::new().read_header(&mut reader).map_err(describe)?;
+    let binary = !matches!(header.encoding, Encoding::Ascii);
+    for element in header.elements.values() {
+        let room = bytes.len() / min_entry_bytes(element, binary);
+        if element.count > room {
+            return Err(format!(
+                "element `{}` declares {} entries, more than the file's {} bytes can hold",
+                element.name,
+                element.count,
+                bytes.len()
+            ));
+        }
+    }
     let mut mesh = PlyMesh::default();
     let (mut has_vertices, mut has_faces) = (false, false);
     for element in header.elements.values() {
@@ -248,13 +290,16 @@ mod tests {
 
     #[test]
     fn malformed_files_are_errors() {
-        let cases: [&[u8]; 6] = [
+        let cases: [&[u8]; 8] = [
             b"",
             b"not a ply file\n",
             b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n",
             b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n",
             b"ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\nend_header\n\x00\x00",
             b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n3 0 0\n",
+            // The fuzzer's out-of-memory input: 68 M vertices without properties.
+            include_bytes!("../../fuzz/artifacts/ply/oom-9a6827968804c1f93ff78e1f1cab3c10c1af3b9c"),
+            b"ply\nformat ascii 1.0\nelement vertex 1000\nproperty float x\nproperty float y\nproperty float z\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n",
         ];
         for (k, bytes) in cases.iter().enumerate() {
             assert!(parse(bytes).is_err(), "case {k} parsed");
