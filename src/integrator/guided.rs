@@ -241,10 +241,10 @@ pub fn sample_mixture(
         let local = frame.to_local(dir);
         (dir, local, bsdf.pdf(wi, local))
     };
-    let pdf = BSDF_SHARE * pdf_bsdf + (1.0 - BSDF_SHARE) * guide_pdf(guide_frame.to_local(dir));
     if !si.consistent(dir, local.z) {
         return None;
     }
+    let pdf = BSDF_SHARE * pdf_bsdf + (1.0 - BSDF_SHARE) * guide_pdf(guide_frame.to_local(dir));
     let weight = bsdf.eval(wi, local) * (local.z.abs() / pdf);
     (pdf > 0.0 && weight.is_finite()).then_some(Scatter { dir, weight, pdf, delta: false })
 }

@@ -550,22 +550,20 @@ fn shape_corners(kind: ShapeKind, t: &[Vec3A; 3], centre: Vec3A, radius: f32) ->
         if phi < 0.0 { phi + std::f32::consts::TAU } else { phi }
     };
     let fix_seam = |mut uv: [Vec2; 3], pole: [bool; 3]| {
-        let us: Vec<f32> = (0..3).filter(|&k| !pole[k]).map(|k| uv[k].x).collect();
-        let (lo, hi) = us.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &u| (a.min(u), b.max(u)));
+        let off_pole = || (0..3).filter(|&k| !pole[k]);
+        let (lo, hi) =
+            off_pole().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), k| (a.min(uv[k].x), b.max(uv[k].x)));
         if hi - lo > 0.5 {
-            for (k, c) in uv.iter_mut().enumerate() {
-                if !pole[k] && c.x < 0.5 {
-                    c.x += 1.0;
+            for k in off_pole() {
+                if uv[k].x < 0.5 {
+                    uv[k].x += 1.0;
                 }
             }
         }
-        let others: Vec<f32> = (0..3).filter(|&k| !pole[k]).map(|k| uv[k].x).collect();
-        if !others.is_empty() {
-            let mean = others.iter().sum::<f32>() / others.len() as f32;
-            for k in 0..3 {
-                if pole[k] {
-                    uv[k].x = mean;
-                }
+        let (sum, count) = off_pole().fold((0.0f32, 0u32), |(s, n), k| (s + uv[k].x, n + 1));
+        if count > 0 {
+            for k in (0..3).filter(|&k| pole[k]) {
+                uv[k].x = sum / count as f32;
             }
         }
         uv
@@ -724,6 +722,47 @@ fn push_triangle(g: &mut Geometry, mut t: [Vec3A; 3], mut corners: Corners, mate
     Ok(())
 }
 
+/// One polygon face's corners, filled by a mesh loader for [`push_face`]: positions, and
+/// normals and texture coordinates (each empty when the face has none). Reused across faces.
+#[derive(Default)]
+struct Face {
+    positions: Vec<Vec3A>,
+    normals: Vec<Vec3A>,
+    uvs: Vec<Vec2>,
+    ears: Vec<[usize; 3]>,
+}
+
+impl Face {
+    fn clear(&mut self) {
+        self.positions.clear();
+        self.normals.clear();
+        self.uvs.clear();
+    }
+}
+
+/// Triangulates `face` (ear clipping; a polygon that is not simple is fanned and counted) and
+/// adds its triangles of `material`; `reverse` turns their winding and normals.
+fn push_face(g: &mut Geometry, face: &mut Face, material: u32, reverse: bool) -> Result<(), String> {
+    face.ears.clear();
+    if !crate::geometry::polygon::triangulate(&face.positions, &mut face.ears) {
+        g.findings.non_simple += 1;
+    }
+    let flip = if reverse { -1.0 } else { 1.0 };
+    for e in &face.ears {
+        let mut t = e.map(|k| face.positions[k]);
+        let mut corners = Corners {
+            normals: (!face.normals.is_empty()).then(|| e.map(|k| face.normals[k] * flip)),
+            uvs: (!face.uvs.is_empty()).then(|| e.map(|k| face.uvs[k])),
+        };
+        if reverse {
+            t.swap(1, 2);
+            corners.swap();
+        }
+        push_triangle(g, t, corners, material)?;
+    }
+    Ok(())
+}
+
 /// The triangles added so far, with their materials and attributes.
 #[derive(Default)]
 pub(crate) struct Geometry {
@@ -776,8 +815,7 @@ fn ply_into(ply_path: &Path, bytes: &[u8], material: u32, reverse: bool, geometr
         return Err(mesh_err(format!("vertex {} has a non-finite coordinate", i + 1)));
     }
     let n = mesh.positions.len();
-    let flip = if reverse { -1.0 } else { 1.0 };
-    let (mut polygon, mut ears) = (Vec::new(), Vec::new());
+    let mut scratch = Face::default();
     for (f, face) in mesh.faces.iter().enumerate() {
         if let Some(&i) = face.iter().find(|&&i| i < 0 || i as usize >= n) {
             return Err(mesh_err(format!("face {}: vertex index {i} out of range ({n} vertices)", f + 1)));
@@ -793,25 +831,15 @@ fn ply_into(ply_path: &Path, bytes: &[u8], material: u32, reverse: bool, geometr
                 face.len()
             )));
         }
-        polygon.clear();
-        polygon.extend(face.iter().map(|&i| mesh.positions[i as usize]));
-        ears.clear();
-        if !crate::geometry::polygon::triangulate(&polygon, &mut ears) {
-            geometry.findings.non_simple += 1;
+        scratch.clear();
+        scratch.positions.extend(face.iter().map(|&i| mesh.positions[i as usize]));
+        if let Some(ns) = &mesh.normals {
+            scratch.normals.extend(face.iter().map(|&i| ns[i as usize]));
         }
-        for e in &ears {
-            let corner = |k: usize| face[e[k]] as usize;
-            let mut t = [polygon[e[0]], polygon[e[1]], polygon[e[2]]];
-            let mut corners = Corners {
-                normals: mesh.normals.as_ref().map(|ns| [0, 1, 2].map(|k| ns[corner(k)] * flip)),
-                uvs: mesh.uvs.as_ref().map(|uvs| [0, 1, 2].map(|k| uvs[corner(k)])),
-            };
-            if reverse {
-                t.swap(1, 2);
-                corners.swap();
-            }
-            push_triangle(geometry, t, corners, material).map_err(mesh_err)?;
+        if let Some(uvs) = &mesh.uvs {
+            scratch.uvs.extend(face.iter().map(|&i| uvs[i as usize]));
         }
+        push_face(geometry, &mut scratch, material, reverse).map_err(mesh_err)?;
     }
     if mesh.faces.is_empty() {
         return Err(mesh_err("no faces".into()));
@@ -894,8 +922,7 @@ fn obj_into(
         Err(_) => {}
     }
     let mut faces = 0usize;
-    let mut polygon = Vec::new();
-    let mut ears = Vec::new();
+    let mut scratch = Face::default();
     for model in &models {
         let m = &model.mesh;
         if m.indices.is_empty() {
@@ -971,27 +998,16 @@ fn obj_into(
                     face + 1
                 )));
             }
-            polygon.clear();
-            polygon.extend(ids.iter().map(|&i| vertex(i)));
-            ears.clear();
-            if !crate::geometry::polygon::triangulate(&polygon, &mut ears) {
-                geometry.findings.non_simple += 1;
-            }
             let face_range = start - arity..start;
-            let face_normals = has_normals.then(|| &m.normal_indices[face_range.clone()]);
-            let face_uvs = has_uvs.then(|| &m.texcoord_indices[face_range]);
-            for e in &ears {
-                let mut t = [polygon[e[0]], polygon[e[1]], polygon[e[2]]];
-                let mut corners = Corners {
-                    normals: face_normals.map(|ids| e.map(|k| normal(ids[k]) * if reverse { -1.0 } else { 1.0 })),
-                    uvs: face_uvs.map(|ids| e.map(|k| texcoord(ids[k]))),
-                };
-                if reverse {
-                    t.swap(1, 2);
-                    corners.swap();
-                }
-                push_triangle(geometry, t, corners, material).map_err(mesh_err)?;
+            scratch.clear();
+            scratch.positions.extend(ids.iter().map(|&i| vertex(i)));
+            if has_normals {
+                scratch.normals.extend(m.normal_indices[face_range.clone()].iter().map(|&i| normal(i)));
             }
+            if has_uvs {
+                scratch.uvs.extend(m.texcoord_indices[face_range].iter().map(|&i| texcoord(i)));
+            }
+            push_face(geometry, &mut scratch, material, reverse).map_err(mesh_err)?;
         }
     }
     if faces == 0 {
