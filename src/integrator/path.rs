@@ -165,8 +165,9 @@ pub(crate) fn trace_path<A: Accel, const NEE_ONLY: bool>(
             break;
         };
         let next = ctx.scene.interaction(&ray, &hit);
+        // (Tested under `!NEE_ONLY` itself: a SIMD compare with zero is not folded away.)
         let emitted = if NEE_ONLY { Vec3A::ZERO } else { next.emitted() };
-        if emitted != Vec3A::ZERO {
+        if !NEE_ONLY && emitted != Vec3A::ZERO {
             if s.delta {
                 radiance += throughput * emitted;
             } else if weigh.surfaces {

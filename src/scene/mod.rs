@@ -161,6 +161,30 @@ struct Emitters {
     /// triangle's material).
     emission: Vec<Vec3A>,
     luminance: Vec<f32>,
+    /// Per emitter, what deciding its weight at a shading point reads first (most points in
+    /// a scene lie behind most one-sided emitters): one record, not five arrays.
+    planes: Vec<EmitterPlane>,
+}
+
+/// An emitter triangle's plane, and what [`Scene::in_front`] and [`Scene::far`] read with it.
+#[derive(Clone, Copy, Debug)]
+struct EmitterPlane {
+    v0: Vec3A,
+    normal: Vec3A,
+    centroid: Vec3A,
+    /// Largest centroid–corner distance.
+    radius: f32,
+    /// `v0`'s largest absolute coordinate (the scale of its rounding).
+    v0_scale: f32,
+    two_sided: bool,
+}
+
+impl EmitterPlane {
+    /// The signed height of `x` above the emitting side (both sides count when two-sided).
+    #[inline(always)]
+    fn facing(&self, height: f32) -> f32 {
+        if self.two_sided { height.abs() } else { height }
+    }
 }
 
 /// Lights that are not emitting surfaces.
@@ -341,6 +365,14 @@ impl Scene {
                 let centroid = (t[0] + t[1] + t[2]) / 3.0;
                 let radius = t.iter().map(|&v| (v - centroid).length()).fold(0.0f32, f32::max);
                 emitters.bounds.push((centroid, radius));
+                emitters.planes.push(EmitterPlane {
+                    v0: t[0],
+                    normal: normals[i],
+                    centroid,
+                    radius,
+                    v0_scale: t[0].abs().max_element(),
+                    two_sided: m.two_sided_emission,
+                });
                 let sides = if m.two_sided_emission { 2.0 } else { 1.0 };
                 power.push(sides * PI * area * luminance(m.emission).max(1e-6 * m.emission.max_element()));
             }
@@ -822,34 +854,31 @@ impl Scene {
     /// its squared length and the radius, for the caller's weight.
     #[inline]
     fn far(&self, i: usize, x: Vec3A) -> Option<(Vec3A, f32, f32)> {
-        let (centroid, radius) = self.emitters.bounds[i];
-        let to = centroid - x;
+        let e = &self.emitters.planes[i];
+        let to = e.centroid - x;
         let d2 = to.length_squared();
-        let height = -self.normals[self.emitters.prims[i] as usize].dot(to);
-        let height = if self.emitters.two_sided[i] { height.abs() } else { height };
-        (radius * radius < NEAR_RATIO * NEAR_RATIO * d2 && height >= radius).then_some((to, d2, radius))
+        let height = e.facing(-e.normal.dot(to));
+        (e.radius * e.radius < NEAR_RATIO * NEAR_RATIO * d2 && height >= e.radius).then_some((to, d2, e.radius))
     }
 
     /// The cosine at emitter `i` towards a receiver, counted on either side when it emits on
     /// both.
     #[inline]
     fn facing(&self, i: usize, cos: f32) -> f32 {
-        if self.emitters.two_sided[i] { cos.abs() } else { cos }
+        self.emitters.planes[i].facing(cos)
     }
 
     /// Whether `x` lies on the emitting side of emitter `i` (one-sided emitters: nothing
     /// reaches a point behind, or in, the emitting plane).
     #[inline]
     fn in_front(&self, i: usize, x: Vec3A) -> bool {
-        let prim = self.emitters.prims[i] as usize;
-        let v0 = self.triangles[prim][0];
+        let e = &self.emitters.planes[i];
         // Not within rounding of the plane: a point on the emitter itself (its hit point may
         // sit a few ulps in front) sees it edge-on, i.e. gets nothing from it, but sampling it
         // from there gave a point ~1e-7 away with a weight of 5e5 (the furnace, 1 sample in
         // 10⁷). The margin is far below any distance a scene resolves.
-        let height = (x - v0).dot(self.normals[prim]);
-        let height = if self.emitters.two_sided[i] { height.abs() } else { height };
-        height > IN_FRONT_MARGIN * (1.0 + x.abs().max_element().max(v0.abs().max_element()))
+        let height = e.facing((x - e.v0).dot(e.normal));
+        height > IN_FRONT_MARGIN * (1.0 + x.abs().max_element().max(e.v0_scale))
     }
 
     /// A weight for emitter `i` at `x` (normal `n`) proportional to an estimate of its
@@ -857,7 +886,7 @@ impl Scene {
     /// `∫ cosθ dω` over the triangle, estimated as Ω times the mean cosine warp weight (or, below
     /// [`spherical::MIN_SOLID_ANGLE`], as `A·cosθy/d²` at the centroid times the largest corner
     /// cosine).
-    #[inline]
+    #[inline(always)]
     fn weight(&self, i: usize, x: Vec3A, n: Vec3A) -> f32 {
         if !self.in_front(i, x) {
             return 0.0;
@@ -870,7 +899,7 @@ impl Scene {
             // radius/d (in sine) of the centroid's, so its cosine at x is below
             // cosθx + radius/d: zero weight only when that bound is not positive.
             let d = d2.sqrt();
-            let cos_y = self.facing(i, -self.normals[prim as usize].dot(to) / d);
+            let cos_y = self.facing(i, -self.emitters.planes[i].normal.dot(to) / d);
             let cos_x = n.dot(to) / d;
             if cos_x + radius / d <= 0.0 {
                 return 0.0;
@@ -890,9 +919,9 @@ impl Scene {
             // straddles the horizon.
             return lum * part.projected.max(0.01 * part.omega);
         }
-        let to = self.emitters.bounds[i].0 - x;
+        let to = self.emitters.planes[i].centroid - x;
         let d2 = to.length_squared();
-        let cos_y = self.facing(i, -self.normals[prim as usize].dot(to) / d2.sqrt()).max(0.0);
+        let cos_y = self.facing(i, -self.emitters.planes[i].normal.dot(to) / d2.sqrt()).max(0.0);
         let weight = lum * self.emitters.areas[i] * cos_y / d2 * cosines[0].max(cosines[1]).max(cosines[2]);
         if weight.is_finite() && weight > 0.0 { weight } else { f32::MIN_POSITIVE }
     }
