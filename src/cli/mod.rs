@@ -138,6 +138,36 @@ pub struct MachineArgs {
     pub threads: Option<usize>,
 }
 
+/// How the scene file is read, and what of it the command line overrides.
+#[derive(Clone, Debug, Default, Args)]
+pub struct SceneArgs {
+    /// Mitsuba scenes: the value of `$NAME` (over the scene's `<default>`), as Mitsuba's -D.
+    #[arg(short = 'D', long = "define", value_parser = parse_define, value_name = "NAME=VALUE")]
+    pub defines: Vec<(String, String)>,
+    /// Imported scenes: anything outside the supported subset is an error, not a warning.
+    #[arg(long)]
+    pub strict: bool,
+    /// The longest path counted, in segments (1: emitters seen directly; 2: direct light)
+    /// [default: the scene's (Mitsuba's `max_depth`), else unbounded]. path and jensen only.
+    #[arg(long, value_name = "N")]
+    pub max_depth: Option<u32>,
+}
+
+impl SceneArgs {
+    #[must_use]
+    pub fn import_options(&self) -> crate::scene::import::ImportOptions {
+        crate::scene::import::ImportOptions { defines: self.defines.clone(), strict: self.strict }
+    }
+}
+
+fn parse_define(s: &str) -> std::result::Result<(String, String), String> {
+    let (name, value) = s.split_once('=').ok_or_else(|| format!("\"{s}\" is not NAME=VALUE"))?;
+    if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+        return Err(format!("\"{name}\" is not a name (letters, digits, _)"));
+    }
+    Ok((name.to_string(), value.to_string()))
+}
+
 /// Estimator options: light sampling (every integrator), then the photon map and guides of
 /// the guided integrators (jensen, zvidpt-*).
 #[derive(Clone, Debug, Args)]

@@ -9,6 +9,8 @@ pub struct RenderArgs {
     pub scene: PathBuf,
     #[command(flatten)]
     pub machine: MachineArgs,
+    #[command(flatten)]
+    pub scene_args: SceneArgs,
     /// Output EXR (linear float RGB, per-pixel variance, render metadata).
     #[arg(short, long, default_value = "render.exr")]
     pub output: PathBuf,
@@ -21,7 +23,8 @@ pub struct RenderArgs {
     /// PNG exposure in stops (pixel values are scaled by 2^EV before sRGB encoding).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub exposure: f32,
-    /// Samples per pixel [default: 64, or unlimited when --time is given].
+    /// Samples per pixel [default: the scene's (Mitsuba's `sample_count`), else 64; unlimited
+    /// when --time is given].
     #[arg(long)]
     pub spp: Option<u32>,
     /// Render only samples A..B of every pixel (of an --spp render) into a partial file at
@@ -131,9 +134,12 @@ pub(super) fn check_render_options(args: &RenderArgs) -> Result<()> {
 
 /// The scene as the command line sets it up (its resolution overridden).
 pub(super) fn load_scene(args: &RenderArgs) -> Result<Scene> {
-    let mut scene = Scene::load(locate_scene(&args.scene))?;
+    let mut scene = Scene::load_with(locate_scene(&args.scene), &args.scene_args.import_options())?;
     if let Some((w, h)) = args.machine.resolution {
         scene.set_resolution(w, h)?;
+    }
+    if let Some(d) = args.scene_args.max_depth {
+        scene.render.max_depth = Some(d);
     }
     Ok(scene)
 }
@@ -164,6 +170,14 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     for w in &scene.warnings {
         warn!("warning: {w}");
     }
+    if let Some(d) = scene.render.max_depth
+        && !matches!(args.integrator, IntegratorKind::Path | IntegratorKind::Jensen)
+    {
+        warn!(
+            "warning: a max depth ({d}) is honoured by path and jensen only: {:?} counts paths of every length",
+            args.integrator
+        );
+    }
     if let Some(c) = &checkpoint {
         match &c.resume {
             Some(r) => warn!("resuming {} after {} spp ({:.1} s)", c.path.display(), r.part.sums.spp, r.seconds),
@@ -179,7 +193,11 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         }
     }
     let settings = RenderSettings {
-        spp: args.spp.or(if args.time.is_some() { None } else { Some(crate::render::DEFAULT_SPP) }),
+        spp: args.spp.or(if args.time.is_some() {
+            None
+        } else {
+            Some(scene.render.spp.unwrap_or(crate::render::DEFAULT_SPP))
+        }),
         time_limit: args.time,
         seed: args.seed,
         threads: args.machine.threads,

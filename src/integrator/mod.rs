@@ -37,6 +37,9 @@ pub struct RenderContext<'a, A: Accel> {
     pub training_iterations: Option<u32>,
     /// [`Scene::lambertian_only`], once per render.
     pub lambertian_only: bool,
+    /// The longest path counted, in segments (`u32::MAX`: unbounded): the scene's
+    /// `max_depth` (Mitsuba's), honoured by `path` and `jensen`.
+    pub max_depth: u32,
 }
 
 /// Per-tile tallies and scratch memory, owned by the tile being rendered: no shared counters

@@ -118,6 +118,10 @@ pub(crate) fn trace_path<A: Accel, const NEE_ONLY: bool>(
     let film = pixel.as_vec2() + rng.pixel_2d();
     let ray = ctx.scene.camera.ray(film);
     scratch.rays += 1;
+    // Paths of at most `max_depth` segments: the camera's is the first.
+    if ctx.max_depth == 0 {
+        return Vec3A::ZERO;
+    }
     let Some(hit) = ctx.accel.intersect(&ray) else {
         return ctx.scene.environment(ray.dir);
     };
@@ -127,7 +131,9 @@ pub(crate) fn trace_path<A: Accel, const NEE_ONLY: bool>(
     let mut bounce = 0;
     loop {
         let albedo = si.material.albedo();
-        if albedo == Vec3A::ZERO {
+        // Light reaching this vertex (by NEE or by the next direction) ends a path of
+        // `bounce + 2` segments.
+        if albedo == Vec3A::ZERO || bounce + 2 > ctx.max_depth {
             break;
         }
         let frame = si.bsdf_frame();

@@ -126,6 +126,16 @@ impl Bitmap {
         }
     }
 
+    /// The image upside down: a bitmap read with `v = 0` at its *top* row (Mitsuba's
+    /// convention) is ours of the flipped image.
+    pub fn flip_rows(&mut self) {
+        let w = self.width;
+        for j in 0..self.height / 2 {
+            let (top, bottom) = self.texels.split_at_mut((self.height - 1 - j) * w);
+            top[j * w..(j + 1) * w].swap_with_slice(&mut bottom[..w]);
+        }
+    }
+
     /// Width, height and the texels, row-major from the top row.
     #[must_use]
     pub fn into_texels(self) -> (usize, usize, Vec<Vec3A>) {

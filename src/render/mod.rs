@@ -237,6 +237,7 @@ fn render_in_pool<A: Accel, I: Integrator>(
         spp: settings.spp,
         training_iterations: resume.and_then(|r| r.training_iterations),
         lambertian_only: scene.lambertian_only(),
+        max_depth: scene.render.max_depth.unwrap_or(u32::MAX),
     };
     let prepass = integrator.prepare(&ctx, settings.seed)?;
     let prepass_seconds = start.elapsed().as_secs_f64();

@@ -11,6 +11,10 @@ pub struct Camera {
     tan_half_fov: f32,
     pub width: u32,
     pub height: u32,
+    /// The whole film's size and the rendered window's top-left corner in it (a crop): the
+    /// image is `width`×`height` pixels of it.
+    full: Vec2,
+    offset: Vec2,
 }
 
 impl Camera {
@@ -29,21 +33,52 @@ impl Camera {
             tan_half_fov,
             width,
             height,
+            full: Vec2::new(width as f32, height as f32),
+            offset: Vec2::ZERO,
         })
     }
 
+    /// The same camera rendering only the window `[x, y, width, height]` (pixels from the top
+    /// left) of its film; `None` unless the window is non-empty and inside the film.
+    #[must_use]
+    pub fn cropped(&self, [x, y, w, h]: [u32; 4]) -> Option<Self> {
+        let inside = w > 0
+            && h > 0
+            && u64::from(x) + u64::from(w) <= u64::from(self.width)
+            && u64::from(y) + u64::from(h) <= u64::from(self.height);
+        inside.then(|| Self {
+            width: w,
+            height: h,
+            offset: self.offset + Vec2::new(x as f32, y as f32) * self.full / self.size(),
+            ..self.clone()
+        })
+    }
+
+    /// The camera seen in a mirror: the image flipped left–right.
+    #[must_use]
+    pub fn mirrored(&self) -> Self {
+        Self { right: -self.right, ..self.clone() }
+    }
+
+    fn size(&self) -> Vec2 {
+        Vec2::new(self.width as f32, self.height as f32)
+    }
+
+    /// The same view at another resolution (a crop keeps its window of the film).
     #[must_use]
     pub fn with_resolution(&self, width: u32, height: u32) -> Self {
-        Self { width, height, ..self.clone() }
+        let scale = Vec2::new(width as f32, height as f32) / self.size();
+        Self { width, height, full: self.full * scale, offset: self.offset * scale, ..self.clone() }
     }
 
     /// The primary ray through film point `film` (in pixels).
     #[inline]
     #[must_use]
     pub fn ray(&self, film: Vec2) -> Ray {
-        let aspect = self.width as f32 / self.height as f32;
-        let x = (2.0 * film.x / self.width as f32 - 1.0) * self.tan_half_fov * aspect;
-        let y = (1.0 - 2.0 * film.y / self.height as f32) * self.tan_half_fov;
+        let film = film + self.offset;
+        let aspect = self.full.x / self.full.y;
+        let x = (2.0 * film.x / self.full.x - 1.0) * self.tan_half_fov * aspect;
+        let y = (1.0 - 2.0 * film.y / self.full.y) * self.tan_half_fov;
         Ray::new(self.eye, (self.right * x + self.up * y + self.forward).normalize())
     }
 }
@@ -66,5 +101,25 @@ mod tests {
         }
         assert!(Camera::new(Vec3A::ZERO, Vec3A::ZERO, Vec3A::Y, 45.0, 1, 1).is_none());
         assert!(Camera::new(Vec3A::ZERO, Vec3A::Y, Vec3A::Y, 45.0, 1, 1).is_none());
+    }
+
+    /// A crop renders exactly the window's rays of the whole film, at any resolution; a
+    /// mirrored camera swaps left and right.
+    #[test]
+    fn crops_and_mirrors() {
+        let cam = Camera::new(Vec3A::new(0.0, 0.0, 3.4), Vec3A::ZERO, Vec3A::Y, 45.0, 512, 384).unwrap();
+        let crop = cam.cropped([100, 50, 64, 32]).unwrap();
+        assert_eq!((crop.width, crop.height), (64, 32));
+        for (u, v) in [(0.0, 0.0), (10.5, 3.25), (64.0, 32.0)] {
+            let (a, b) = (crop.ray(Vec2::new(u, v)).dir, cam.ray(Vec2::new(u + 100.0, v + 50.0)).dir);
+            assert!((a - b).length() < 1e-6, "{u},{v}: {a} vs {b}");
+            let half = crop.with_resolution(32, 16).ray(Vec2::new(u / 2.0, v / 2.0)).dir;
+            assert!((half - b).length() < 1e-6, "{u},{v} at half resolution: {half} vs {b}");
+        }
+        assert!(cam.cropped([500, 0, 13, 1]).is_none());
+        assert!(cam.cropped([0, 0, 0, 1]).is_none());
+        let m = cam.mirrored().ray(Vec2::new(10.0, 20.0)).dir;
+        let d = cam.ray(Vec2::new(502.0, 20.0)).dir;
+        assert!((m - d).length() < 1e-6, "{m} vs {d}");
     }
 }

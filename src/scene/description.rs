@@ -20,6 +20,19 @@ pub struct SceneDescription {
     #[serde(default, rename = "light")]
     pub lights: Vec<LightDescription>,
     pub environment: Option<EnvironmentDescription>,
+    /// What the scene asks of a render: the command line's flags win.
+    pub render: Option<RenderDescription>,
+}
+
+/// A scene's defaults for rendering it (Mitsuba's `sampler` and `integrator`).
+#[derive(Debug, Deserialize, Clone, Copy, Default)]
+#[serde(deny_unknown_fields)]
+pub struct RenderDescription {
+    /// Samples per pixel when `--spp` is not given.
+    pub spp: Option<u32>,
+    /// The longest path counted, in segments (1: emitters seen directly; 2: direct light),
+    /// as Mitsuba's `max_depth`; absent: unbounded. `--max-depth` overrides it.
+    pub max_depth: Option<u32>,
 }
 
 /// A light that is not a surface.
@@ -66,6 +79,13 @@ pub struct CameraDescription {
     pub fov_y: f32,
     pub width: u32,
     pub height: u32,
+    /// Render only this window of the `width`×`height` film: `[x, y, width, height]` in
+    /// pixels from the top left (Mitsuba's `crop_offset_x`, … ).
+    pub crop: Option<[u32; 4]>,
+    /// Mirror the image left–right (a camera whose transform mirrors, as some exported
+    /// Mitsuba scenes have).
+    #[serde(default)]
+    pub mirror: bool,
 }
 
 fn default_up() -> [f32; 3] {
@@ -164,6 +184,8 @@ pub struct TextureDescription {
     pub color0: Option<[f32; 3]>,
     pub color1: Option<[f32; 3]>,
     pub scale: Option<[f32; 2]>,
+    /// Bitmaps: `v = 0` is the image's top row (Mitsuba's convention), not its bottom.
+    pub v_from_top: Option<bool>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -178,6 +200,19 @@ pub struct MeshDescription {
     /// Reverse every triangle's winding, flipping geometric normals and emitting sides.
     #[serde(default)]
     pub reverse_winding: bool,
+    /// Place the mesh by this affine map (row-major 4×4, last row 0 0 0 1).
+    pub matrix: Option<[[f32; 4]; 4]>,
+    /// Give triangles without vertex normals smooth ones: at each vertex (corners sharing
+    /// position and texture coordinates) the mean of its faces' normals weighted by their
+    /// angles there, as Mitsuba 3 computes for meshes without normals.
+    #[serde(default)]
+    pub smooth_normals: bool,
+    /// Drop the mesh's vertex normals: flat triangles (Mitsuba's `face_normals`).
+    #[serde(default)]
+    pub face_normals: bool,
+    /// Replace the mesh's texture coordinates `v` by `1 − v` (Mitsuba's `flip_tex_coords`).
+    #[serde(default)]
+    pub flip_v: bool,
 }
 
 /// The canonical shapes (see [`crate::scene::shapes`]).

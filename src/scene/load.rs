@@ -1,6 +1,7 @@
 //! Loading a scene: the TOML file, its OBJ/MTL meshes, and every check that turns bad input
 //! into an error naming the file (and line, where the parser knows it).
 use super::description::{LightKind, MaterialDescription, SceneDescription, ShapeDescription, ShapeKind};
+use super::import::{Format, ImportOptions};
 use super::{Attributes, Camera, Lights, Material, Scene, TextureSlots};
 use crate::geometry::{Vec2, Vec3A};
 use crate::light::envmap::Environment;
@@ -78,18 +79,49 @@ pub(crate) fn check_resolution(width: u32, height: u32) -> Result<(), String> {
     Ok(())
 }
 
-/// A scene argument is a scene file or a folder holding `scene.toml`.
+/// A scene argument is a scene file or a folder holding `scene.toml` (or else `scene.xml`).
 #[must_use]
 pub fn resolve_scene_path(path: &Path) -> PathBuf {
-    if path.is_dir() { path.join("scene.toml") } else { path.to_path_buf() }
+    if !path.is_dir() {
+        return path.to_path_buf();
+    }
+    let toml = path.join("scene.toml");
+    if toml.exists() {
+        return toml;
+    }
+    ["scene.xml"].iter().map(|f| path.join(f)).find(|p| p.exists()).unwrap_or(toml)
 }
 
 impl Scene {
     /// Loads a scene file (or a folder holding `scene.toml`).
     pub fn load(path: impl AsRef<Path>) -> Result<Scene> {
+        Scene::load_with(path, &ImportOptions::default())
+    }
+
+    /// Loads a scene file in any format we read (by its extension: `.xml` is Mitsuba 3,
+    /// anything else our TOML), or a folder holding `scene.toml`.
+    pub fn load_with(path: impl AsRef<Path>, options: &ImportOptions) -> Result<Scene> {
         let path = resolve_scene_path(path.as_ref());
         let text = read_text(&path, MAX_SCENE_BYTES, "scene file")?;
-        Scene::parse(&text, &path)
+        match Format::of(&path) {
+            Format::Toml => Scene::parse(&text, &path),
+            Format::Mitsuba => Scene::parse_mitsuba(&text, &path, options),
+        }
+    }
+
+    /// A Mitsuba 3 scene from the text of its file (see [`super::import::mitsuba`]).
+    pub fn parse_mitsuba(text: &str, path: &Path, options: &ImportOptions) -> Result<Scene> {
+        let imported = super::import::mitsuba::import(path, text, options)?;
+        let mut scene = build(path, imported.description)?;
+        let mut warnings = imported.warnings;
+        warnings.append(&mut scene.warnings);
+        scene.warnings = warnings;
+        for file in imported.sources.into_iter().rev() {
+            if !scene.sources.contains(&file) {
+                scene.sources.insert(0, file);
+            }
+        }
+        Ok(scene)
     }
 
     /// A scene from the text of its file; `path` names it in errors and locates its meshes.
@@ -226,8 +258,13 @@ fn textures_from(path: &Path, d: &SceneDescription) -> Result<Textures> {
         };
         let texture = match t.kind {
             TextureKind::Checkerboard => {
-                if t.file.is_some() || t.wrap.is_some() || t.filter.is_some() || t.raw.is_some() {
-                    return Err(err("`file`, `wrap`, `filter` and `raw` are for bitmaps".into()));
+                if t.file.is_some()
+                    || t.wrap.is_some()
+                    || t.filter.is_some()
+                    || t.raw.is_some()
+                    || t.v_from_top.is_some()
+                {
+                    return Err(err("`file`, `wrap`, `filter`, `raw` and `v_from_top` are for bitmaps".into()));
                 }
                 let scale = t.scale.unwrap_or([2.0; 2]);
                 if !scale.iter().all(|x| x.is_finite() && *x > 0.0 && *x <= 1e6) {
@@ -257,7 +294,10 @@ fn textures_from(path: &Path, d: &SceneDescription) -> Result<Textures> {
                     None | Some(FilterDescription::Bilinear) => Filter::Bilinear,
                     Some(FilterDescription::Nearest) => Filter::Nearest,
                 };
-                let bitmap = Bitmap::load(&file, wrap, filter, t.raw.unwrap_or(false))?;
+                let mut bitmap = Bitmap::load(&file, wrap, filter, t.raw.unwrap_or(false))?;
+                if t.v_from_top == Some(true) {
+                    bitmap.flip_rows();
+                }
                 if bitmap.texels.iter().any(|t| !t.is_finite() || t.min_element() < 0.0) {
                     return Err(Error::Image {
                         path: file,
@@ -351,8 +391,19 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
     if ![c.eye, c.look_at, c.up].iter().flatten().all(|x| x.is_finite()) {
         return Err(invalid(path, "camera: eye, look_at and up must be finite"));
     }
-    let camera = Camera::new(vec3(c.eye), vec3(c.look_at), vec3(c.up), c.fov_y, c.width, c.height)
+    let mut camera = Camera::new(vec3(c.eye), vec3(c.look_at), vec3(c.up), c.fov_y, c.width, c.height)
         .ok_or_else(|| invalid(path, "camera: eye equals look_at, or up is parallel to the view direction"))?;
+    if c.mirror {
+        camera = camera.mirrored();
+    }
+    if let Some(window) = c.crop {
+        camera = camera.cropped(window).ok_or_else(|| {
+            invalid(
+                path,
+                format!("camera: crop {window:?} must be a non-empty window inside the {}x{} film", c.width, c.height),
+            )
+        })?;
+    }
 
     let (textures, texture_ids, texture_sources) = textures_from(path, &d)?;
     let mut meshes = Meshes::default();
@@ -383,6 +434,7 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
             ),
             None => None,
         };
+        let start = meshes.geometry.triangles.len();
         if is_ply {
             let material = override_id.ok_or_else(|| {
                 invalid(path, format!("mesh `{file}`: a PLY mesh needs `material = \"...\"` (PLY has no materials)"))
@@ -390,6 +442,33 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
             load_ply(&mesh_path, material, mesh.reverse_winding, &mut meshes.geometry)?;
         } else {
             load_obj(&mesh_path, override_id, mesh.reverse_winding, &mut meshes)?;
+        }
+        if let Some(m) = mesh.matrix {
+            transform_since(&mut meshes.geometry, start, m)
+                .map_err(|e| invalid(path, format!("mesh `{file}`: {e}")))?;
+        }
+        if mesh.face_normals && mesh.smooth_normals {
+            return Err(invalid(
+                path,
+                format!("mesh `{file}`: `face_normals` and `smooth_normals` exclude each other"),
+            ));
+        }
+        if mesh.face_normals {
+            let normals = &mut meshes.geometry.attributes.normals;
+            for c in normals.iter_mut().skip(start) {
+                *c = [Vec3A::ZERO; 3];
+            }
+        }
+        if mesh.smooth_normals {
+            smooth_normals_since(&mut meshes.geometry, start);
+        }
+        if mesh.flip_v {
+            let uvs = &mut meshes.geometry.attributes.uvs;
+            for c in uvs.iter_mut().skip(start).filter(|c| **c != Attributes::BARYCENTRIC_UV) {
+                for uv in c {
+                    uv.y = 1.0 - uv.y;
+                }
+            }
         }
     }
     for (k, shape) in d.shapes.iter().enumerate() {
@@ -424,6 +503,12 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
         Scene::from_parts(name, path.to_path_buf(), camera, triangles, triangle_material, materials, lights, warnings);
     scene.attributes = attributes;
     scene.textures = textures;
+    if let Some(r) = d.render {
+        if r.spp == Some(0) {
+            return Err(invalid(path, "render: spp must be at least 1"));
+        }
+        scene.render = r;
+    }
     scene.sources.extend(texture_sources);
     scene.sources.extend(sources);
     scene.sources.extend(light_sources);
@@ -501,24 +586,103 @@ fn lights_from(path: &Path, d: &SceneDescription) -> Result<(Lights, Vec<PathBuf
     Ok((lights, sources))
 }
 
+/// A row-major 4×4 `matrix` as `(linear part, translation)`: finite, affine.
+fn affine(m: [[f32; 4]; 4]) -> Result<(glam::Mat3A, Vec3A), String> {
+    if !m.iter().flatten().all(|x| x.is_finite()) {
+        return Err("`matrix` must be finite".into());
+    }
+    if m[3] != [0.0, 0.0, 0.0, 1.0] {
+        return Err(format!("`matrix`'s last row must be [0, 0, 0, 1] (an affine map), got {:?}", m[3]));
+    }
+    let linear = glam::Mat3A::from_cols(
+        Vec3A::new(m[0][0], m[1][0], m[2][0]),
+        Vec3A::new(m[0][1], m[1][1], m[2][1]),
+        Vec3A::new(m[0][2], m[1][2], m[2][2]),
+    );
+    Ok((linear, Vec3A::new(m[0][3], m[1][3], m[2][3])))
+}
+
+/// Moves the triangles from `start` on (a mesh just loaded) by the affine map `m`: corners,
+/// and shading normals by the inverse transpose; a mirroring map swaps two corners so that
+/// the outside stays outside. Triangles the map makes degenerate are an error (the map
+/// flattens the mesh).
+fn transform_since(g: &mut Geometry, start: usize, m: [[f32; 4]; 4]) -> Result<(), String> {
+    let (linear, translate) = affine(m)?;
+    let det = linear.determinant();
+    if !(det.is_finite() && det.abs() > 1e-30) {
+        return Err("the `matrix` flattens the mesh (its determinant is zero)".into());
+    }
+    let normal_map = linear.inverse().transpose();
+    let flip = det < 0.0;
+    for i in start..g.triangles.len() {
+        let t = g.triangles[i].map(|p| linear * p + translate);
+        let n = (t[1] - t[0]).cross(t[2] - t[0]);
+        if !(t.iter().all(|p| p.is_finite()) && n.normalize().is_finite()) {
+            return Err("the `matrix` makes a triangle degenerate or infinite".into());
+        }
+        g.triangles[i] = t;
+        if let Some(c) = g.attributes.normals.get_mut(i).filter(|c| c[0] != Vec3A::ZERO) {
+            *c = c.map(|v| (normal_map * v).normalize_or_zero());
+            if c.contains(&Vec3A::ZERO) {
+                *c = [Vec3A::ZERO; 3];
+            }
+        }
+        if flip {
+            g.triangles[i].swap(1, 2);
+            if let Some(c) = g.attributes.normals.get_mut(i) {
+                c.swap(1, 2);
+            }
+            if let Some(c) = g.attributes.uvs.get_mut(i) {
+                c.swap(1, 2);
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Smooth vertex normals for the triangles from `start` on that have none: corners with the
+/// same position and texture coordinates are one vertex, whose normal is the sum of its
+/// triangles' unit normals each weighted by the triangle's angle at it (Mitsuba 3's rule for
+/// meshes without normals), normalised. A vertex whose sum vanishes leaves its triangles flat.
+fn smooth_normals_since(g: &mut Geometry, start: usize) {
+    let end = g.triangles.len();
+    let has_normals = |g: &Geometry, i: usize| g.attributes.normals.get(i).is_some_and(|c| c[0] != Vec3A::ZERO);
+    let key = |g: &Geometry, i: usize, k: usize| {
+        let p = g.triangles[i][k];
+        let uv = g.attributes.uvs.get(i).map_or(Vec2::ZERO, |t| t[k]);
+        [p.x.to_bits(), p.y.to_bits(), p.z.to_bits(), uv.x.to_bits(), uv.y.to_bits()]
+    };
+    let mut sums: HashMap<[u32; 5], Vec3A> = HashMap::new();
+    for i in (start..end).filter(|&i| !has_normals(g, i)) {
+        let t = g.triangles[i];
+        let n = (t[1] - t[0]).cross(t[2] - t[0]).normalize_or_zero();
+        for k in 0..3 {
+            let (a, b) = ((t[(k + 1) % 3] - t[k]).normalize_or_zero(), (t[(k + 2) % 3] - t[k]).normalize_or_zero());
+            let angle = a.dot(b).clamp(-1.0, 1.0).acos();
+            *sums.entry(key(g, i, k)).or_insert(Vec3A::ZERO) += n * angle;
+        }
+    }
+    if sums.is_empty() {
+        return;
+    }
+    let smooth: Vec<(usize, [Vec3A; 3])> = (start..end)
+        .filter(|&i| !has_normals(g, i))
+        .map(|i| (i, [0, 1, 2].map(|k| sums[&key(g, i, k)].normalize_or_zero())))
+        .filter(|(_, c)| !c.contains(&Vec3A::ZERO))
+        .collect();
+    g.attributes.normals.resize(end, [Vec3A::ZERO; 3]);
+    for (i, c) in smooth {
+        g.attributes.normals[i] = c;
+    }
+}
+
 /// The affine map of a shape's placement: `(linear part, translation)`.
 fn shape_transform(s: &ShapeDescription) -> Result<(glam::Mat3A, Vec3A), String> {
     if let Some(m) = s.matrix {
         if s.scale.is_some() || s.rotate.is_some() || s.translate.is_some() {
             return Err("give either `matrix` or `scale`/`rotate`/`translate`, not both".into());
         }
-        if !m.iter().flatten().all(|x| x.is_finite()) {
-            return Err("`matrix` must be finite".into());
-        }
-        if m[3] != [0.0, 0.0, 0.0, 1.0] {
-            return Err(format!("`matrix`'s last row must be [0, 0, 0, 1] (an affine map), got {:?}", m[3]));
-        }
-        let linear = glam::Mat3A::from_cols(
-            Vec3A::new(m[0][0], m[1][0], m[2][0]),
-            Vec3A::new(m[0][1], m[1][1], m[2][1]),
-            Vec3A::new(m[0][2], m[1][2], m[2][2]),
-        );
-        return Ok((linear, Vec3A::new(m[0][3], m[1][3], m[2][3])));
+        return affine(m);
     }
     let scale = vec3(s.scale.unwrap_or([1.0; 3]));
     let translate = vec3(s.translate.unwrap_or([0.0; 3]));

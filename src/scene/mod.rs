@@ -2,11 +2,13 @@
 //! full shading record built once from a backend's preliminary [`Hit`].
 mod camera;
 pub mod description;
+pub mod import;
 mod load;
 pub mod ply;
 pub mod shapes;
 
 pub use camera::Camera;
+pub use description::RenderDescription;
 pub(crate) use load::read_text;
 pub use load::{obj_triangles, ply_triangles};
 
@@ -141,6 +143,8 @@ pub struct Scene {
     pub warnings: Vec<String>,
     /// Files the scene was read from (the scene file, its meshes): no output may replace them.
     pub sources: Vec<PathBuf>,
+    /// The scene's own render defaults (sample count, path depth), below the command line's.
+    pub render: RenderDescription,
 }
 
 /// Emitter triangles picked with probability ∝ power (`π · area · lum(Le)`).
@@ -416,6 +420,7 @@ impl Scene {
             bounds,
             warnings,
             sources,
+            render: RenderDescription::default(),
         }
     }
 

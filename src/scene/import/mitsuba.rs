@@ -1,0 +1,1495 @@
+//! Mitsuba 3 XML scenes (RGB mode), read into the same description a TOML scene file gives.
+//!
+//! The file is first read into a tree of owned objects ([`Obj`]): `<default>` values and
+//! `-D name=value` substituted for `$name`, `<include>`d files spliced in, every value parsed
+//! where it stands (so that a malformed one is reported at its own file and line). The tree is
+//! then translated: sensor, film and sampler to the camera and render defaults; shapes to
+//! meshes and shapes with one material each (an area emitter makes the shape's material
+//! emit); BSDFs and textures to materials and textures; other emitters to lights.
+//!
+//! What lies outside the subset gives one warning naming the element, its file and line, and
+//! what is used instead (`strict`: an error).
+use super::super::description::{
+    CameraDescription, EnvironmentDescription, FilterDescription, LightDescription, LightKind, MaterialDescription,
+    MaterialKind, MeshDescription, RenderDescription, RotateDescription, SceneDescription, ShapeDescription, ShapeKind,
+    TextureDescription, TextureKind, WrapDescription,
+};
+use super::ImportOptions;
+use crate::error::{Error, Result};
+use glam::{DMat4, DVec3, DVec4};
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+use std::rc::Rc;
+
+/// Largest scene file read (text), as for TOML scenes.
+const MAX_FILE_BYTES: u64 = 64 << 20;
+/// Deepest nesting of `<include>`s (a cycle stops here).
+const MAX_INCLUDE_DEPTH: usize = 16;
+/// Deepest nesting of elements (roxmltree's own limit is far deeper; a recursive walk must
+/// not overflow the stack on a hostile file).
+const MAX_ELEMENT_DEPTH: usize = 64;
+
+/// Where an element stands: file and line.
+#[derive(Clone, Debug)]
+struct At {
+    file: Rc<PathBuf>,
+    line: u32,
+}
+
+impl std::fmt::Display for At {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}:{}", self.file.display(), self.line)
+    }
+}
+
+/// A parameter's value, parsed where it was written.
+#[derive(Clone, Debug)]
+enum Value {
+    Float(f64),
+    Integer(i64),
+    Boolean(bool),
+    Text(String),
+    /// `rgb`, or a `spectrum` reduced to RGB.
+    Colour([f32; 3]),
+    /// `point` or `vector`.
+    Vector(DVec3),
+    Transform(DMat4),
+    /// A nested object (texture, BSDF, …) given for a named parameter, or a `<ref>` to one.
+    Object(Box<Obj>),
+    Ref(String),
+}
+
+/// A Mitsuba object: `<bsdf type="diffuse" id="...">` with its parameters and nested objects.
+#[derive(Clone, Debug)]
+struct Obj {
+    /// The element's tag: `bsdf`, `shape`, `emitter`, `texture`, `sensor`, …
+    tag: String,
+    /// Its `type` attribute (the plugin).
+    plugin: String,
+    id: Option<String>,
+    at: At,
+    /// Named parameters, in file order.
+    params: Vec<(String, Value, At)>,
+    /// Nested objects without a `name` (a shape's BSDF and emitter, a sensor's film, …),
+    /// and `<ref>`s without one.
+    children: Vec<Child>,
+}
+
+#[derive(Clone, Debug)]
+enum Child {
+    Obj(Obj),
+    Ref(String, At),
+}
+
+impl Obj {
+    fn param(&self, name: &str) -> Option<&(String, Value, At)> {
+        self.params.iter().rev().find(|(n, ..)| n == name)
+    }
+}
+
+/// The reader's state across the main file and its includes.
+struct Reader<'o> {
+    options: &'o ImportOptions,
+    /// `<default>` values (the command line's `-D` take precedence).
+    defaults: HashMap<String, String>,
+    warnings: Vec<String>,
+    include_depth: usize,
+    /// Every file read (the scene's sources).
+    files: Vec<PathBuf>,
+}
+
+/// What the importer produced.
+pub(crate) struct Imported {
+    pub description: SceneDescription,
+    pub warnings: Vec<String>,
+    pub sources: Vec<PathBuf>,
+}
+
+/// Reads the Mitsuba 3 scene at `path`.
+pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result<Imported> {
+    let mut reader = Reader {
+        options,
+        defaults: HashMap::new(),
+        warnings: Vec::new(),
+        include_depth: 0,
+        files: vec![path.to_path_buf()],
+    };
+    let root = reader.read_document(path, text)?;
+    let mut t = Translator { reader: &mut reader, ids: HashMap::new(), out: empty_description(), count: 0 };
+    t.translate(&root)?;
+    let description = t.out;
+    Ok(Imported { description, warnings: reader.warnings, sources: reader.files })
+}
+
+fn empty_description() -> SceneDescription {
+    SceneDescription {
+        camera: CameraDescription {
+            eye: [0.0; 3],
+            look_at: [0.0, 0.0, 1.0],
+            up: [0.0, 1.0, 0.0],
+            fov_y: 45.0,
+            width: 768,
+            height: 576,
+            crop: None,
+            mirror: false,
+        },
+        materials: BTreeMap::new(),
+        textures: BTreeMap::new(),
+        meshes: Vec::new(),
+        shapes: Vec::new(),
+        lights: Vec::new(),
+        environment: None,
+        render: None,
+    }
+}
+
+fn syntax(at: &At, message: impl Into<String>) -> Error {
+    Error::SceneSyntax { path: at.file.to_path_buf(), message: format!("line {}: {}", at.line, message.into()) }
+}
+
+impl Reader<'_> {
+    /// A warning, or with `--strict` the error it would be.
+    fn unsupported(&mut self, at: &At, message: String) -> Result<()> {
+        if self.options.strict {
+            return Err(syntax(at, format!("{message} (--strict)")));
+        }
+        self.warnings.push(format!("{at}: {message}"));
+        Ok(())
+    }
+
+    /// Parses the document at `path` (text `text`) into its root `<scene>` object.
+    fn read_document(&mut self, path: &Path, text: &str) -> Result<Obj> {
+        let file = Rc::new(path.to_path_buf());
+        let doc = roxmltree::Document::parse(text).map_err(|e| {
+            let pos = e.pos();
+            Error::SceneSyntax { path: path.to_path_buf(), message: format!("line {}: {e}", pos.row) }
+        })?;
+        let root = doc.root_element();
+        let at = At { file: file.clone(), line: doc.text_pos_at(root.range().start).row };
+        if root.tag_name().name() != "scene" {
+            return Err(syntax(&at, format!("the root element is <{}>, not <scene>", root.tag_name().name())));
+        }
+        let mut scene =
+            Obj { tag: "scene".into(), plugin: String::new(), id: None, at, params: Vec::new(), children: Vec::new() };
+        self.read_children(&doc, root, &file, &mut scene, 0)?;
+        Ok(scene)
+    }
+
+    fn at(&self, doc: &roxmltree::Document, node: roxmltree::Node, file: &Rc<PathBuf>) -> At {
+        At { file: file.clone(), line: doc.text_pos_at(node.range().start).row }
+    }
+
+    /// Attribute `name` of `node` with `$name` references substituted.
+    fn attr(&self, node: roxmltree::Node, name: &str, at: &At) -> Result<Option<String>> {
+        node.attribute(name).map(|v| self.substitute(v, at)).transpose()
+    }
+
+    fn required(&self, node: roxmltree::Node, name: &str, at: &At) -> Result<String> {
+        self.attr(node, name, at)?
+            .ok_or_else(|| syntax(at, format!("<{}> needs the attribute `{name}`", node.tag_name().name())))
+    }
+
+    /// `$name` (or `${name}`) replaced by the `-D` value or `<default>`.
+    fn substitute(&self, text: &str, at: &At) -> Result<String> {
+        if !text.contains('$') {
+            return Ok(text.to_string());
+        }
+        let mut out = String::with_capacity(text.len());
+        let mut rest = text;
+        while let Some(k) = rest.find('$') {
+            out.push_str(&rest[..k]);
+            rest = &rest[k + 1..];
+            let (name, after) = if let Some(r) = rest.strip_prefix('{') {
+                let end = r.find('}').ok_or_else(|| syntax(at, format!("unclosed `${{` in \"{text}\"")))?;
+                (&r[..end], &r[end + 1..])
+            } else {
+                let end = rest.find(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).unwrap_or(rest.len());
+                (&rest[..end], &rest[end..])
+            };
+            if name.is_empty() {
+                return Err(syntax(at, format!("a `$` without a name in \"{text}\"")));
+            }
+            let value = self
+                .options
+                .defines
+                .iter()
+                .rev()
+                .find(|(n, _)| n == name)
+                .map(|(_, v)| v.as_str())
+                .or_else(|| self.defaults.get(name).map(String::as_str))
+                .ok_or_else(|| syntax(at, format!("`${name}` has no value (give -D {name}=... or a <default>)")))?;
+            out.push_str(value);
+            rest = after;
+        }
+        out.push_str(rest);
+        Ok(out)
+    }
+
+    /// Reads the element children of `node` into `obj`.
+    fn read_children(
+        &mut self,
+        doc: &roxmltree::Document,
+        node: roxmltree::Node,
+        file: &Rc<PathBuf>,
+        obj: &mut Obj,
+        depth: usize,
+    ) -> Result<()> {
+        for child in node.children().filter(roxmltree::Node::is_element) {
+            let at = self.at(doc, child, file);
+            if depth >= MAX_ELEMENT_DEPTH {
+                return Err(syntax(&at, format!("elements nest deeper than {MAX_ELEMENT_DEPTH}")));
+            }
+            let tag = child.tag_name().name();
+            match tag {
+                "default" => {
+                    let name = self.required(child, "name", &at)?;
+                    let value = self.required(child, "value", &at)?;
+                    self.defaults.entry(name).or_insert(value);
+                }
+                "include" => {
+                    let name = self.required(child, "filename", &at)?;
+                    let path = resolve(file, &name);
+                    if self.include_depth >= MAX_INCLUDE_DEPTH {
+                        return Err(syntax(&at, format!("includes nest deeper than {MAX_INCLUDE_DEPTH} (a cycle?)")));
+                    }
+                    let text = crate::scene::read_text(&path, MAX_FILE_BYTES, "included file")?;
+                    self.files.push(path.clone());
+                    self.include_depth += 1;
+                    let included = self.read_document(&path, &text)?;
+                    self.include_depth -= 1;
+                    obj.params.extend(included.params);
+                    obj.children.extend(included.children);
+                }
+                "ref" => {
+                    let id = self.required(child, "id", &at)?;
+                    match self.attr(child, "name", &at)? {
+                        Some(name) => obj.params.push((name, Value::Ref(id), at)),
+                        None => obj.children.push(Child::Ref(id, at)),
+                    }
+                }
+                "float" | "integer" | "boolean" | "string" | "rgb" | "spectrum" | "point" | "vector" => {
+                    let name = self.required(child, "name", &at)?;
+                    let value = self.value(child, tag, &at)?;
+                    obj.params.push((name, value, at));
+                }
+                "transform" => {
+                    let name = self.required(child, "name", &at)?;
+                    let m = self.transform(doc, child, file)?;
+                    obj.params.push((name, Value::Transform(m), at));
+                }
+                "bsdf" | "shape" | "emitter" | "texture" | "sensor" | "film" | "sampler" | "integrator" | "rfilter"
+                | "medium" | "phase" | "volume" => {
+                    let plugin = self.attr(child, "type", &at)?.unwrap_or_default();
+                    let id = self.attr(child, "id", &at)?;
+                    let mut nested = Obj {
+                        tag: tag.to_string(),
+                        plugin,
+                        id,
+                        at: at.clone(),
+                        params: Vec::new(),
+                        children: Vec::new(),
+                    };
+                    self.read_children(doc, child, file, &mut nested, depth + 1)?;
+                    match self.attr(child, "name", &at)? {
+                        Some(name) => obj.params.push((name, Value::Object(Box::new(nested)), at)),
+                        None => obj.children.push(Child::Obj(nested)),
+                    }
+                }
+                other => self.unsupported(&at, format!("<{other}> is not part of Mitsuba 3's format: ignored"))?,
+            }
+        }
+        Ok(())
+    }
+
+    /// A `<float>`, `<rgb>`, … element's value.
+    fn value(&mut self, node: roxmltree::Node, tag: &str, at: &At) -> Result<Value> {
+        let text = || self.required(node, "value", at);
+        let number = |s: &str| -> Result<f64> {
+            let v: f64 = s.trim().parse().map_err(|_| syntax(at, format!("<{tag}>: \"{s}\" is not a number")))?;
+            if v.is_finite() { Ok(v) } else { Err(syntax(at, format!("<{tag}>: \"{s}\" is not finite"))) }
+        };
+        Ok(match tag {
+            "float" => Value::Float(number(&text()?)?),
+            "integer" => {
+                let s = text()?;
+                Value::Integer(
+                    s.trim().parse().map_err(|_| syntax(at, format!("<integer>: \"{s}\" is not an integer")))?,
+                )
+            }
+            "boolean" => Value::Boolean(match text()?.trim() {
+                "true" => true,
+                "false" => false,
+                s => return Err(syntax(at, format!("<boolean>: \"{s}\" is neither true nor false"))),
+            }),
+            "string" => Value::Text(text()?),
+            "rgb" => {
+                let s = text()?;
+                let v = numbers(&s).map_err(|m| syntax(at, format!("<rgb>: {m}")))?;
+                match v[..] {
+                    [g] => Value::Colour([g as f32; 3]),
+                    [r, g, b] => Value::Colour([r as f32, g as f32, b as f32]),
+                    _ => return Err(syntax(at, format!("<rgb> needs 1 or 3 numbers, got \"{s}\""))),
+                }
+            }
+            "spectrum" => {
+                if node.attribute("filename").is_some() {
+                    self.unsupported(at, "<spectrum filename=...> is not read: grey 0.5 used".into())?;
+                    return Ok(Value::Colour([0.5; 3]));
+                }
+                let s = text()?;
+                if s.contains(':') {
+                    // Wavelength:value pairs: their mean (no spectral-to-RGB conversion).
+                    let mut values = Vec::new();
+                    for pair in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+                        let (_, v) = pair
+                            .split_once(':')
+                            .ok_or_else(|| syntax(at, format!("<spectrum>: \"{pair}\" is not λ:value")))?;
+                        values.push(number(v)?);
+                    }
+                    if values.is_empty() {
+                        return Err(syntax(at, "<spectrum> has no values"));
+                    }
+                    self.unsupported(
+                        at,
+                        "a sampled <spectrum> is reduced to the mean of its values (grey), not converted to RGB".into(),
+                    )?;
+                    let mean = values.iter().sum::<f64>() / values.len() as f64;
+                    Value::Colour([mean as f32; 3])
+                } else {
+                    let v = numbers(&s).map_err(|m| syntax(at, format!("<spectrum>: {m}")))?;
+                    match v[..] {
+                        [g] => Value::Colour([g as f32; 3]),
+                        _ => {
+                            return Err(syntax(
+                                at,
+                                format!("<spectrum> needs one number or λ:value pairs, got \"{s}\""),
+                            ));
+                        }
+                    }
+                }
+            }
+            _ => Value::Vector(self.vector(node, at, 0.0)?),
+        })
+    }
+
+    /// `x`/`y`/`z` attributes (each defaulting to `default`), or `value="x, y, z"` (one number:
+    /// all three).
+    fn vector(&self, node: roxmltree::Node, at: &At, default: f64) -> Result<DVec3> {
+        if let Some(s) = self.attr(node, "value", at)? {
+            let v = numbers(&s).map_err(|m| syntax(at, m))?;
+            return match v[..] {
+                [a] => Ok(DVec3::splat(a)),
+                [x, y, z] => Ok(DVec3::new(x, y, z)),
+                _ => Err(syntax(at, format!("\"{s}\" needs 1 or 3 numbers"))),
+            };
+        }
+        let mut v = DVec3::splat(default);
+        for (k, name) in ["x", "y", "z"].iter().enumerate() {
+            if let Some(s) = self.attr(node, name, at)? {
+                v[k] = one_number(&s).map_err(|m| syntax(at, m))?;
+            }
+        }
+        Ok(v)
+    }
+
+    /// A `<transform>`'s operations, each applied after (to the left of) the ones before.
+    fn transform(&mut self, doc: &roxmltree::Document, node: roxmltree::Node, file: &Rc<PathBuf>) -> Result<DMat4> {
+        let mut m = DMat4::IDENTITY;
+        for op in node.children().filter(roxmltree::Node::is_element) {
+            let at = self.at(doc, op, file);
+            let step = match op.tag_name().name() {
+                "translate" => DMat4::from_translation(self.vector(op, &at, 0.0)?),
+                "scale" => DMat4::from_scale(self.vector(op, &at, 1.0)?),
+                "rotate" => {
+                    let axis = self.vector(op, &at, 0.0)?;
+                    let angle = one_number(&self.required(op, "angle", &at)?).map_err(|m| syntax(&at, m))?;
+                    let axis = axis.try_normalize().ok_or_else(|| syntax(&at, "<rotate> needs a non-zero axis"))?;
+                    DMat4::from_axis_angle(axis, angle.to_radians())
+                }
+                "matrix" => {
+                    let s = self.required(op, "value", &at)?;
+                    let v = numbers(&s).map_err(|m| syntax(&at, m))?;
+                    match v.len() {
+                        16 => DMat4::from_cols_array(&[
+                            v[0], v[4], v[8], v[12], v[1], v[5], v[9], v[13], v[2], v[6], v[10], v[14], v[3], v[7],
+                            v[11], v[15],
+                        ]),
+                        9 => DMat4::from_cols(
+                            DVec4::new(v[0], v[3], v[6], 0.0),
+                            DVec4::new(v[1], v[4], v[7], 0.0),
+                            DVec4::new(v[2], v[5], v[8], 0.0),
+                            DVec4::W,
+                        ),
+                        n => return Err(syntax(&at, format!("<matrix> needs 16 (or 9) numbers, got {n}"))),
+                    }
+                }
+                "lookat" => {
+                    let point = |name: &str| -> Result<DVec3> {
+                        let s = self.required(op, name, &at)?;
+                        match numbers(&s).map_err(|m| syntax(&at, m))?[..] {
+                            [x, y, z] => Ok(DVec3::new(x, y, z)),
+                            _ => Err(syntax(&at, format!("<lookat {name}> needs 3 numbers, got \"{s}\""))),
+                        }
+                    };
+                    let (origin, target) = (point("origin")?, point("target")?);
+                    let up = if op.attribute("up").is_some() { point("up")? } else { DVec3::Y };
+                    lookat(origin, target, up).ok_or_else(|| {
+                        syntax(&at, "<lookat>: origin equals target, or up is parallel to the view direction")
+                    })?
+                }
+                other => {
+                    self.unsupported(&at, format!("<{other}> in a <transform> is not supported: ignored"))?;
+                    DMat4::IDENTITY
+                }
+            };
+            m = step * m;
+        }
+        if !m.is_finite() {
+            return Err(syntax(&self.at(doc, node, file), "the transform is not finite"));
+        }
+        Ok(m)
+    }
+}
+
+/// Mitsuba's `lookat`: camera space's +z towards the target, +y up, +x to the left.
+fn lookat(origin: DVec3, target: DVec3, up: DVec3) -> Option<DMat4> {
+    let dir = (target - origin).try_normalize()?;
+    let left = up.cross(dir).try_normalize()?;
+    let new_up = dir.cross(left);
+    Some(DMat4::from_cols(left.extend(0.0), new_up.extend(0.0), dir.extend(0.0), origin.extend(1.0)))
+}
+
+/// Numbers separated by commas and/or white space.
+fn numbers(s: &str) -> std::result::Result<Vec<f64>, String> {
+    s.split(|c: char| c == ',' || c.is_whitespace())
+        .filter(|t| !t.is_empty())
+        .map(|t| match t.parse::<f64>() {
+            Ok(v) if v.is_finite() => Ok(v),
+            _ => Err(format!("\"{t}\" is not a finite number")),
+        })
+        .collect()
+}
+
+fn one_number(s: &str) -> std::result::Result<f64, String> {
+    match numbers(s)?[..] {
+        [v] => Ok(v),
+        _ => Err(format!("\"{s}\" is not one number")),
+    }
+}
+
+/// A file named in `from`: relative to `from`'s folder, made absolute (the description's
+/// paths are otherwise read relative to the main scene file's folder).
+fn resolve(from: &Path, name: &str) -> PathBuf {
+    let path = from.parent().unwrap_or(Path::new(".")).join(name);
+    std::path::absolute(&path).unwrap_or(path)
+}
+
+/// Named indices of refraction, as Mitsuba 3 lists them.
+fn named_ior(name: &str) -> Option<f32> {
+    Some(match name {
+        "vacuum" => 1.0,
+        "helium" => 1.000_036,
+        "hydrogen" => 1.000_132,
+        "air" => 1.000_277,
+        "carbon dioxide" => 1.000_449,
+        "water" => 1.333,
+        "acetone" => 1.36,
+        "ethanol" => 1.361,
+        "carbon tetrachloride" => 1.461,
+        "glycerol" => 1.4729,
+        "benzene" => 1.501,
+        "silicone oil" => 1.520_45,
+        "bromine" => 1.661,
+        "water ice" => 1.31,
+        "fused quartz" => 1.458,
+        "pyrex" => 1.47,
+        "acrylic glass" => 1.49,
+        "polypropylene" => 1.49,
+        "bk7" => 1.5046,
+        "sodium chloride" => 1.544,
+        "amber" => 1.55,
+        "pet" => 1.575,
+        "diamond" => 2.419,
+        _ => return None,
+    })
+}
+
+/// Turns the object tree into a scene description.
+struct Translator<'r, 'o> {
+    reader: &'r mut Reader<'o>,
+    /// Top-level objects with an `id`, for `<ref>`s.
+    ids: HashMap<String, Obj>,
+    out: SceneDescription,
+    /// Names handed out for materials and textures.
+    count: usize,
+}
+
+/// A BSDF as a material, before a shape's emitter is added.
+struct Bsdf {
+    material: MaterialDescription,
+}
+
+impl Translator<'_, '_> {
+    fn fresh(&mut self, prefix: &str) -> String {
+        self.count += 1;
+        format!("{prefix}{}", self.count)
+    }
+
+    fn unsupported(&mut self, at: &At, message: String) -> Result<()> {
+        self.reader.unsupported(at, message)
+    }
+
+    /// Warns about every parameter of `obj` outside `known`.
+    fn check_params(&mut self, obj: &Obj, known: &[&str]) -> Result<()> {
+        for (name, _, at) in &obj.params {
+            if !known.contains(&name.as_str()) {
+                let message =
+                    format!("<{} type=\"{}\">: parameter `{name}` is not supported: ignored", obj.tag, obj.plugin);
+                self.reader.unsupported(at, message)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn resolve_ref<'a>(&'a self, id: &str, at: &At) -> Result<&'a Obj> {
+        self.ids.get(id).ok_or_else(|| syntax(at, format!("<ref id=\"{id}\">: no object has that id (before it)")))
+    }
+
+    fn translate(&mut self, scene: &Obj) -> Result<()> {
+        self.check_params(scene, &[])?;
+        let mut sensor = None;
+        for child in &scene.children {
+            let obj = match child {
+                Child::Obj(o) => o,
+                Child::Ref(id, at) => {
+                    self.unsupported(at, format!("a top-level <ref id=\"{id}\"> is not an object: ignored"))?;
+                    continue;
+                }
+            };
+            if let Some(id) = &obj.id {
+                self.ids.insert(id.clone(), obj.clone());
+            }
+            match obj.tag.as_str() {
+                "shape" => self.shape(obj)?,
+                "emitter" => self.emitter(obj)?,
+                "sensor" => {
+                    if sensor.is_some() {
+                        self.unsupported(&obj.at, "a second <sensor>: ignored (the first one renders)".into())?;
+                    } else {
+                        sensor = Some(obj);
+                    }
+                }
+                "integrator" => self.integrator(obj)?,
+                // Defined for `<ref>`s.
+                "bsdf" | "texture" => {}
+                other => {
+                    let message = format!("<{other} type=\"{}\"> is not supported: ignored", obj.plugin);
+                    self.unsupported(&obj.at, message)?;
+                }
+            }
+        }
+        match sensor {
+            Some(s) => self.sensor(s)?,
+            None => {
+                // Mitsuba's default sensor: at the origin looking along +z, 45° (x), 768×576.
+                self.camera(DMat4::IDENTITY, 45.0, "x", 768, 576, &scene.at)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn float(&mut self, obj: &Obj, name: &str, default: f64) -> Result<f64> {
+        match obj.param(name) {
+            None => Ok(default),
+            Some((_, Value::Float(v), _)) => Ok(*v),
+            Some((_, Value::Integer(v), _)) => Ok(*v as f64),
+            Some((_, _, at)) => Err(syntax(at, format!("`{name}` must be a number"))),
+        }
+    }
+
+    fn integer(&mut self, obj: &Obj, name: &str, default: i64) -> Result<i64> {
+        match obj.param(name) {
+            None => Ok(default),
+            Some((_, Value::Integer(v), _)) => Ok(*v),
+            Some((_, _, at)) => Err(syntax(at, format!("`{name}` must be an <integer>"))),
+        }
+    }
+
+    fn boolean(&mut self, obj: &Obj, name: &str, default: bool) -> Result<bool> {
+        match obj.param(name) {
+            None => Ok(default),
+            Some((_, Value::Boolean(v), _)) => Ok(*v),
+            Some((_, _, at)) => Err(syntax(at, format!("`{name}` must be a <boolean>"))),
+        }
+    }
+
+    fn text(&mut self, obj: &Obj, name: &str) -> Result<Option<String>> {
+        match obj.param(name) {
+            None => Ok(None),
+            Some((_, Value::Text(v), _)) => Ok(Some(v.clone())),
+            Some((_, _, at)) => Err(syntax(at, format!("`{name}` must be a <string>"))),
+        }
+    }
+
+    fn transform(&mut self, obj: &Obj, name: &str) -> Result<DMat4> {
+        match obj.param(name) {
+            None => Ok(DMat4::IDENTITY),
+            Some((_, Value::Transform(m), _)) => Ok(*m),
+            Some((_, _, at)) => Err(syntax(at, format!("`{name}` must be a <transform>"))),
+        }
+    }
+
+    /// A colour parameter: a constant, or a texture (its name among the scene's textures).
+    fn colour(&mut self, obj: &Obj, name: &str, default: [f32; 3]) -> Result<(Option<[f32; 3]>, Option<String>)> {
+        let Some((_, value, at)) = obj.param(name).cloned() else {
+            return Ok((Some(default), None));
+        };
+        match value {
+            Value::Colour(c) => Ok((Some(c), None)),
+            Value::Float(v) => Ok((Some([v as f32; 3]), None)),
+            Value::Object(t) if t.tag == "texture" => Ok((None, Some(self.texture(&t)?))),
+            Value::Ref(id) => {
+                let t = self.resolve_ref(&id, &at)?.clone();
+                if t.tag != "texture" {
+                    return Err(syntax(&at, format!("`{name}` refers to a <{}>, not a texture", t.tag)));
+                }
+                Ok((None, Some(self.texture(&t)?)))
+            }
+            _ => Err(syntax(&at, format!("`{name}` must be a colour or a texture"))),
+        }
+    }
+
+    /// A colour parameter that may not be a texture (falls back to the texture's mean with
+    /// a warning... here to grey 0.5).
+    fn constant_colour(&mut self, obj: &Obj, name: &str, default: [f32; 3]) -> Result<[f32; 3]> {
+        let (c, t) = self.colour(obj, name, default)?;
+        match (c, t) {
+            (Some(c), _) => Ok(c),
+            (None, _) => {
+                let at = obj.param(name).map_or(obj.at.clone(), |p| p.2.clone());
+                self.unsupported(
+                    &at,
+                    format!("`{name}` of <{} type=\"{}\"> cannot be a texture here: 0.5 used", obj.tag, obj.plugin),
+                )?;
+                Ok([0.5; 3])
+            }
+        }
+    }
+
+    /// A texture: its name in the description.
+    fn texture(&mut self, t: &Obj) -> Result<String> {
+        let name = self.fresh("texture");
+        let description = match t.plugin.as_str() {
+            "bitmap" => {
+                self.check_params(t, &["filename", "filter_type", "wrap_mode", "raw", "to_uv"])?;
+                let file = self.text(t, "filename")?.ok_or_else(|| syntax(&t.at, "a bitmap needs `filename`"))?;
+                let path = resolve(&t.at.file, &file);
+                let filter = match self.text(t, "filter_type")?.as_deref() {
+                    None | Some("bilinear") => FilterDescription::Bilinear,
+                    Some("nearest") => FilterDescription::Nearest,
+                    Some(other) => return Err(syntax(&t.at, format!("unknown filter_type \"{other}\""))),
+                };
+                let wrap = match self.text(t, "wrap_mode")?.as_deref() {
+                    None | Some("repeat") => WrapDescription::Repeat,
+                    Some("mirror") => WrapDescription::Mirror,
+                    Some("clamp") => WrapDescription::Clamp,
+                    Some(other) => return Err(syntax(&t.at, format!("unknown wrap_mode \"{other}\""))),
+                };
+                if self.transform(t, "to_uv")? != DMat4::IDENTITY {
+                    self.unsupported(&t.at, "a bitmap's `to_uv` is not supported: identity used".into())?;
+                }
+                TextureDescription {
+                    kind: TextureKind::Bitmap,
+                    file: Some(path.to_string_lossy().into_owned()),
+                    wrap: Some(wrap),
+                    filter: Some(filter),
+                    raw: Some(self.boolean(t, "raw", false)?),
+                    color0: None,
+                    color1: None,
+                    scale: None,
+                    v_from_top: Some(true),
+                }
+            }
+            "checkerboard" => {
+                self.check_params(t, &["color0", "color1", "to_uv"])?;
+                let c0 = self.constant_colour(t, "color0", [0.4; 3])?;
+                let c1 = self.constant_colour(t, "color1", [0.2; 3])?;
+                let m = self.transform(t, "to_uv")?;
+                // One period of Mitsuba's checkerboard spans [0, 1]: two squares; a `to_uv`
+                // scale multiplies them (a shear or rotation is not supported).
+                let (sx, sy) = (m.x_axis.x, m.y_axis.y);
+                let pure_scale = m.x_axis.y == 0.0 && m.y_axis.x == 0.0 && m.w_axis.x == 0.0 && m.w_axis.y == 0.0;
+                if !pure_scale || sx <= 0.0 || sy <= 0.0 {
+                    self.unsupported(
+                        &t.at,
+                        "a checkerboard's `to_uv` other than a positive scale: its scale alone used".into(),
+                    )?;
+                }
+                TextureDescription {
+                    kind: TextureKind::Checkerboard,
+                    file: None,
+                    wrap: None,
+                    filter: None,
+                    raw: None,
+                    color0: Some(c0),
+                    color1: Some(c1),
+                    scale: Some([(2.0 * sx.abs().max(1e-6)) as f32, (2.0 * sy.abs().max(1e-6)) as f32]),
+                    v_from_top: None,
+                }
+            }
+            other => {
+                self.unsupported(&t.at, format!("<texture type=\"{other}\"> is not supported: grey 0.5 used"))?;
+                TextureDescription {
+                    kind: TextureKind::Checkerboard,
+                    file: None,
+                    wrap: None,
+                    filter: None,
+                    raw: None,
+                    color0: Some([0.5; 3]),
+                    color1: Some([0.5; 3]),
+                    scale: None,
+                    v_from_top: None,
+                }
+            }
+        };
+        self.out.textures.insert(name.clone(), description);
+        Ok(name)
+    }
+
+    /// An index of refraction: a number or one of Mitsuba's names.
+    fn ior(&mut self, obj: &Obj, name: &str, default: f32) -> Result<f32> {
+        match obj.param(name).cloned() {
+            None => Ok(default),
+            Some((_, Value::Float(v), _)) => Ok(v as f32),
+            Some((_, Value::Text(s), at)) => {
+                named_ior(&s.to_lowercase()).ok_or_else(|| syntax(&at, format!("`{name}`: unknown material \"{s}\"")))
+            }
+            Some((_, _, at)) => Err(syntax(&at, format!("`{name}` must be a number or a material name"))),
+        }
+    }
+
+    /// GGX `alpha` of a rough BSDF (Mitsuba's default 0.1); Beckmann is approximated by
+    /// GGX of the same `alpha`, anisotropic `alpha_u`/`alpha_v` by their mean.
+    fn alpha(&mut self, b: &Obj) -> Result<(f32, Option<String>)> {
+        let distribution = self.text(b, "distribution")?.unwrap_or_else(|| "beckmann".into());
+        if distribution != "ggx" {
+            self.unsupported(
+                &b.at,
+                format!(
+                    "<bsdf type=\"{}\">: the {distribution} distribution is rendered as GGX of the same alpha",
+                    b.plugin
+                ),
+            )?;
+        }
+        if b.param("alpha_u").is_some() || b.param("alpha_v").is_some() {
+            let u = self.float(b, "alpha_u", 0.1)?;
+            let v = self.float(b, "alpha_v", 0.1)?;
+            self.unsupported(&b.at, "anisotropic roughness: the mean of alpha_u and alpha_v used".into())?;
+            return Ok((((u + v) / 2.0) as f32, None));
+        }
+        match b.param("alpha").cloned() {
+            Some((_, Value::Object(t), _)) if t.tag == "texture" => Ok((0.1, Some(self.texture(&t)?))),
+            Some((_, Value::Ref(id), at)) => {
+                let t = self.resolve_ref(&id, &at)?.clone();
+                Ok((0.1, Some(self.texture(&t)?)))
+            }
+            _ => Ok((self.float(b, "alpha", 0.1)? as f32, None)),
+        }
+    }
+
+    /// A BSDF object (or a reference to one) as a material.
+    fn bsdf(&mut self, b: &Obj, depth: usize) -> Result<Bsdf> {
+        let mut m = MaterialDescription { two_sided: Some(false), ..MaterialDescription::default() };
+        let rough = b.plugin.starts_with("rough");
+        match b.plugin.as_str() {
+            "twosided" => {
+                self.check_params(b, &[])?;
+                let inner = b.children.first().cloned();
+                if b.children.len() > 1 {
+                    self.unsupported(&b.at, "a twosided BSDF with two BSDFs: the first one used on both sides".into())?;
+                }
+                let mut inner = match inner {
+                    Some(c) if depth < 4 => self.child_bsdf(&c, depth + 1)?,
+                    _ => return Err(syntax(&b.at, "a twosided BSDF needs one nested BSDF")),
+                };
+                if !matches!(inner.material.kind, MaterialKind::Dielectric | MaterialKind::ThinDielectric) {
+                    inner.material.two_sided = Some(true);
+                }
+                return Ok(inner);
+            }
+            "diffuse" => {
+                self.check_params(b, &["reflectance"])?;
+                let (c, t) = self.colour(b, "reflectance", [0.5; 3])?;
+                m.diffuse = c.unwrap_or([0.0; 3]);
+                m.diffuse_texture = t;
+            }
+            "conductor" | "roughconductor" => {
+                self.check_params(
+                    b,
+                    &[
+                        "material",
+                        "eta",
+                        "k",
+                        "specular_reflectance",
+                        "alpha",
+                        "alpha_u",
+                        "alpha_v",
+                        "distribution",
+                        "sample_visible",
+                    ],
+                )?;
+                m.kind = MaterialKind::Conductor;
+                if b.param("eta").is_some() || b.param("k").is_some() {
+                    m.eta = Some(self.constant_colour(b, "eta", [0.0; 3])?);
+                    m.k = Some(self.constant_colour(b, "k", [1.0; 3])?);
+                } else {
+                    let name = self.text(b, "material")?.unwrap_or_else(|| "none".into());
+                    if crate::material::conductors::lookup(&name).is_none() {
+                        self.unsupported(
+                            &b.at,
+                            format!(
+                                "conductor material \"{name}\" is not in our table: a perfect mirror (\"none\") used"
+                            ),
+                        )?;
+                        m.metal = Some("none".into());
+                    } else {
+                        m.metal = Some(name);
+                    }
+                }
+                let (c, t) = self.colour(b, "specular_reflectance", [1.0; 3])?;
+                m.specular = c;
+                m.specular_texture = t;
+                if rough {
+                    let (alpha, t) = self.alpha(b)?;
+                    m.roughness = Some(alpha);
+                    m.roughness_texture = t;
+                }
+            }
+            "dielectric" | "roughdielectric" | "thindielectric" => {
+                self.check_params(
+                    b,
+                    &[
+                        "int_ior",
+                        "ext_ior",
+                        "alpha",
+                        "alpha_u",
+                        "alpha_v",
+                        "distribution",
+                        "sample_visible",
+                        "specular_reflectance",
+                        "specular_transmittance",
+                    ],
+                )?;
+                for key in ["specular_reflectance", "specular_transmittance"] {
+                    if b.param(key).is_some() {
+                        self.unsupported(&b.at, format!("`{key}` of a dielectric is not supported: 1 used"))?;
+                    }
+                }
+                m.kind =
+                    if b.plugin == "thindielectric" { MaterialKind::ThinDielectric } else { MaterialKind::Dielectric };
+                m.two_sided = None;
+                m.ior = Some(self.ior(b, "int_ior", 1.5046)?);
+                m.exterior_ior = Some(self.ior(b, "ext_ior", 1.000_277)?);
+                if rough {
+                    let (alpha, t) = self.alpha(b)?;
+                    m.roughness = Some(alpha);
+                    m.roughness_texture = t;
+                }
+            }
+            "plastic" | "roughplastic" => {
+                self.check_params(
+                    b,
+                    &[
+                        "diffuse_reflectance",
+                        "int_ior",
+                        "ext_ior",
+                        "nonlinear",
+                        "alpha",
+                        "distribution",
+                        "sample_visible",
+                        "specular_reflectance",
+                    ],
+                )?;
+                if b.param("specular_reflectance").is_some() {
+                    self.unsupported(&b.at, "`specular_reflectance` of a plastic is not supported: 1 used".into())?;
+                }
+                m.kind = MaterialKind::Plastic;
+                let (c, t) = self.colour(b, "diffuse_reflectance", [0.5; 3])?;
+                m.diffuse = c.unwrap_or([0.0; 3]);
+                m.diffuse_texture = t;
+                m.ior = Some(self.ior(b, "int_ior", 1.49)?);
+                m.exterior_ior = Some(self.ior(b, "ext_ior", 1.000_277)?);
+                m.nonlinear = Some(self.boolean(b, "nonlinear", false)?);
+                if rough {
+                    let (alpha, t) = self.alpha(b)?;
+                    if t.is_some() {
+                        self.unsupported(&b.at, "a textured roughness of a plastic is not supported: 0.1 used".into())?;
+                    }
+                    m.roughness = Some(alpha);
+                }
+            }
+            other => {
+                self.unsupported(&b.at, format!("<bsdf type=\"{other}\"> is not supported: grey diffuse (0.5) used"))?;
+                m.diffuse = [0.5; 3];
+            }
+        }
+        Ok(Bsdf { material: m })
+    }
+
+    fn child_bsdf(&mut self, c: &Child, depth: usize) -> Result<Bsdf> {
+        match c {
+            Child::Obj(o) if o.tag == "bsdf" => self.bsdf(o, depth),
+            Child::Obj(o) => Err(syntax(&o.at, format!("<{}> where a BSDF was expected", o.tag))),
+            Child::Ref(id, at) => {
+                let o = self.resolve_ref(id, at)?.clone();
+                if o.tag != "bsdf" {
+                    return Err(syntax(at, format!("<ref id=\"{id}\"> names a <{}>, not a BSDF", o.tag)));
+                }
+                self.bsdf(&o, depth)
+            }
+        }
+    }
+
+    /// A shape: its geometry as a mesh or canonical shape, its material with its emitter.
+    fn shape(&mut self, s: &Obj) -> Result<()> {
+        let mut bsdf = None;
+        let mut emission = None;
+        for child in &s.children {
+            let o = match child {
+                Child::Obj(o) => o.clone(),
+                Child::Ref(id, at) => self.resolve_ref(id, at)?.clone(),
+            };
+            match o.tag.as_str() {
+                "bsdf" => bsdf = Some(self.bsdf(&o, 0)?),
+                "emitter" if o.plugin == "area" => {
+                    self.check_params(&o, &["radiance"])?;
+                    emission = Some(self.constant_colour(&o, "radiance", [1.0; 3])?);
+                }
+                "emitter" => self.unsupported(
+                    &o.at,
+                    format!("a shape's <emitter type=\"{}\">: only area emitters attach to shapes; ignored", o.plugin),
+                )?,
+                other => self.unsupported(&o.at, format!("a <{other}> inside a shape is not supported: ignored"))?,
+            }
+        }
+        let mut material = match bsdf {
+            Some(b) => b.material,
+            // Mitsuba's default BSDF: diffuse 0.5, one-sided.
+            None => MaterialDescription { diffuse: [0.5; 3], two_sided: Some(false), ..MaterialDescription::default() },
+        };
+        if let Some(e) = emission {
+            material.emission = e;
+        }
+        let name = self.fresh("material");
+        let to_world = self.transform(s, "to_world")?;
+        let flip = self.boolean(s, "flip_normals", false)?;
+        let matrix = to_rows(to_world);
+        match s.plugin.as_str() {
+            "obj" | "ply" => {
+                self.check_params(s, &["filename", "to_world", "flip_normals", "face_normals", "flip_tex_coords"])?;
+                let file = self.text(s, "filename")?.ok_or_else(|| syntax(&s.at, "a mesh shape needs `filename`"))?;
+                // Mitsuba gives a mesh without normals smooth ones, unless `face_normals`
+                // (which also drops the file's).
+                let face_normals = self.boolean(s, "face_normals", false)?;
+                // Mitsuba flips an OBJ's `v` by default (its bitmaps start at the top).
+                let flip_v = s.plugin == "obj" && self.boolean(s, "flip_tex_coords", true)?;
+                let path = resolve(&s.at.file, &file).to_string_lossy().into_owned();
+                let (obj, ply) = if s.plugin == "obj" { (Some(path), None) } else { (None, Some(path)) };
+                self.out.meshes.push(MeshDescription {
+                    obj,
+                    ply,
+                    material: Some(name.clone()),
+                    reverse_winding: flip,
+                    matrix: (to_world != DMat4::IDENTITY).then_some(matrix),
+                    smooth_normals: !face_normals,
+                    face_normals,
+                    flip_v,
+                });
+            }
+            "rectangle" | "cube" | "sphere" | "disk" => {
+                let kind = match s.plugin.as_str() {
+                    "rectangle" => ShapeKind::Rectangle,
+                    "cube" => ShapeKind::Cube,
+                    "sphere" => ShapeKind::Sphere,
+                    _ => ShapeKind::Disk,
+                };
+                let (mut center, mut radius) = (None, None);
+                if kind == ShapeKind::Sphere {
+                    self.check_params(s, &["to_world", "flip_normals", "center", "radius"])?;
+                    if let Some((_, v, at)) = s.param("center") {
+                        let Value::Vector(c) = v else { return Err(syntax(at, "`center` must be a <point>")) };
+                        center = Some(c.as_vec3().to_array());
+                    }
+                    radius = Some(self.float(s, "radius", 1.0)? as f32);
+                } else {
+                    self.check_params(s, &["to_world", "flip_normals"])?;
+                }
+                self.out.shapes.push(ShapeDescription {
+                    kind,
+                    material: name.clone(),
+                    center,
+                    radius,
+                    segments: None,
+                    subdivisions: None,
+                    scale: None,
+                    rotate: None::<RotateDescription>,
+                    translate: None,
+                    matrix: Some(matrix),
+                    reverse_winding: flip,
+                });
+            }
+            other => {
+                self.unsupported(&s.at, format!("<shape type=\"{other}\"> is not supported: skipped"))?;
+                return Ok(());
+            }
+        }
+        self.out.materials.insert(name, material);
+        Ok(())
+    }
+
+    /// An emitter outside a shape: a light or the environment.
+    fn emitter(&mut self, e: &Obj) -> Result<()> {
+        let to_world = self.transform(e, "to_world")?;
+        match e.plugin.as_str() {
+            "point" => {
+                self.check_params(e, &["intensity", "position", "to_world"])?;
+                let intensity = self.constant_colour(e, "intensity", [1.0; 3])?;
+                let position = match e.param("position") {
+                    Some((_, Value::Vector(p), _)) => *p,
+                    Some((_, _, at)) => return Err(syntax(at, "`position` must be a <point>")),
+                    None => to_world.transform_point3(DVec3::ZERO),
+                };
+                self.out.lights.push(LightDescription {
+                    kind: LightKind::Point,
+                    position: position.as_vec3().to_array(),
+                    intensity,
+                    direction: None,
+                    cutoff: None,
+                    beam: None,
+                });
+            }
+            "spot" => {
+                self.check_params(e, &["intensity", "cutoff_angle", "beam_width", "to_world"])?;
+                let intensity = self.constant_colour(e, "intensity", [1.0; 3])?;
+                let cutoff = self.float(e, "cutoff_angle", 20.0)? as f32;
+                let beam = self.float(e, "beam_width", f64::from(cutoff) * 0.75)? as f32;
+                let position = to_world.transform_point3(DVec3::ZERO);
+                let direction = to_world.transform_vector3(DVec3::Z);
+                self.out.lights.push(LightDescription {
+                    kind: LightKind::Spot,
+                    position: position.as_vec3().to_array(),
+                    intensity,
+                    direction: Some(direction.as_vec3().to_array()),
+                    cutoff: Some(cutoff),
+                    beam: Some(beam),
+                });
+            }
+            "constant" => {
+                self.check_params(e, &["radiance"])?;
+                let radiance = self.constant_colour(e, "radiance", [1.0; 3])?;
+                self.environment(e, EnvironmentDescription { radiance: Some(radiance), map: None, scale: None })?;
+            }
+            "envmap" => {
+                self.check_params(e, &["filename", "scale", "to_world"])?;
+                let file = self.text(e, "filename")?.ok_or_else(|| syntax(&e.at, "an envmap needs `filename`"))?;
+                let scale = self.float(e, "scale", 1.0)? as f32;
+                let rotation = DMat4::from_cols(to_world.x_axis, to_world.y_axis, to_world.z_axis, DVec4::W);
+                if (rotation - DMat4::IDENTITY).to_cols_array().iter().any(|x| x.abs() > 1e-6) {
+                    self.unsupported(&e.at, "an envmap's `to_world` rotation is not supported: identity used".into())?;
+                }
+                let map = resolve(&e.at.file, &file).to_string_lossy().into_owned();
+                self.environment(e, EnvironmentDescription { radiance: None, map: Some(map), scale: Some(scale) })?;
+            }
+            "area" => self.unsupported(&e.at, "an area emitter outside a shape lights nothing: ignored".into())?,
+            other => self.unsupported(&e.at, format!("<emitter type=\"{other}\"> is not supported: ignored"))?,
+        }
+        Ok(())
+    }
+
+    fn environment(&mut self, e: &Obj, env: EnvironmentDescription) -> Result<()> {
+        if self.out.environment.is_some() {
+            return self.unsupported(&e.at, "a second environment emitter: ignored (the first one lights)".into());
+        }
+        self.out.environment = Some(env);
+        Ok(())
+    }
+
+    fn integrator(&mut self, i: &Obj) -> Result<()> {
+        if !matches!(i.plugin.as_str(), "path" | "volpath" | "volpathmis" | "direct" | "prb" | "ptracer") {
+            self.unsupported(
+                &i.at,
+                format!(
+                    "<integrator type=\"{}\">: its max_depth alone is read; the integrator is --integrator's",
+                    i.plugin
+                ),
+            )?;
+        }
+        let depth = match i.plugin.as_str() {
+            "direct" => 2,
+            _ => self.integer(i, "max_depth", -1)?,
+        };
+        if depth >= 0 {
+            let render = self.out.render.get_or_insert_with(RenderDescription::default);
+            render.max_depth = Some(u32::try_from(depth).unwrap_or(u32::MAX));
+        }
+        Ok(())
+    }
+
+    fn sensor(&mut self, s: &Obj) -> Result<()> {
+        if !matches!(s.plugin.as_str(), "perspective" | "thinlens") {
+            return Err(syntax(&s.at, format!("<sensor type=\"{}\"> is not supported (only perspective)", s.plugin)));
+        }
+        if s.plugin == "thinlens" {
+            self.unsupported(&s.at, "a thinlens sensor renders as a pinhole (no depth of field)".into())?;
+        }
+        self.check_params(
+            s,
+            &[
+                "fov",
+                "fov_axis",
+                "to_world",
+                "near_clip",
+                "far_clip",
+                "focal_length",
+                "aperture_radius",
+                "focus_distance",
+            ],
+        )?;
+        let to_world = self.transform(s, "to_world")?;
+        let (mut width, mut height, mut crop) = (768i64, 576i64, None);
+        for child in &s.children {
+            let Child::Obj(o) = child else { continue };
+            match o.tag.as_str() {
+                "film" => {
+                    if o.plugin != "hdrfilm" {
+                        self.unsupported(&o.at, format!("<film type=\"{}\">: read as hdrfilm", o.plugin))?;
+                    }
+                    self.check_params(
+                        o,
+                        &[
+                            "width",
+                            "height",
+                            "crop_offset_x",
+                            "crop_offset_y",
+                            "crop_width",
+                            "crop_height",
+                            "pixel_format",
+                            "component_format",
+                            "file_format",
+                            "rfilter",
+                            "banner",
+                        ],
+                    )?;
+                    width = self.integer(o, "width", 768)?;
+                    height = self.integer(o, "height", 576)?;
+                    if ["crop_offset_x", "crop_offset_y", "crop_width", "crop_height"]
+                        .iter()
+                        .any(|k| o.param(k).is_some())
+                    {
+                        let x = self.integer(o, "crop_offset_x", 0)?;
+                        let y = self.integer(o, "crop_offset_y", 0)?;
+                        let w = self.integer(o, "crop_width", width - x)?;
+                        let h = self.integer(o, "crop_height", height - y)?;
+                        let window: Vec<u32> =
+                            [x, y, w, h].iter().map(|&v| u32::try_from(v).unwrap_or(u32::MAX)).collect();
+                        crop = Some([window[0], window[1], window[2], window[3]]);
+                    }
+                    for c in &o.children {
+                        if let Child::Obj(f) = c
+                            && f.tag == "rfilter"
+                            && f.plugin != "box"
+                        {
+                            self.unsupported(
+                                &f.at,
+                                format!("<rfilter type=\"{}\">: pixels are box-filtered", f.plugin),
+                            )?;
+                        }
+                    }
+                }
+                "sampler" => {
+                    self.check_params(o, &["sample_count", "seed", "jitter"])?;
+                    let n = self.integer(o, "sample_count", 4)?;
+                    if n < 1 {
+                        return Err(syntax(&o.at, format!("sample_count must be at least 1, got {n}")));
+                    }
+                    let render = self.out.render.get_or_insert_with(RenderDescription::default);
+                    render.spp = Some(u32::try_from(n).unwrap_or(u32::MAX));
+                }
+                other => self.unsupported(&o.at, format!("a <{other}> inside the sensor is not supported: ignored"))?,
+            }
+        }
+        let (fov, axis) = match (s.param("fov"), s.param("focal_length")) {
+            (Some(_), Some((_, _, at))) => return Err(syntax(at, "give `fov` or `focal_length`, not both")),
+            (Some(_), None) => (self.float(s, "fov", 45.0)?, self.text(s, "fov_axis")?.unwrap_or_else(|| "x".into())),
+            (None, focal) => {
+                let text = match focal {
+                    Some((_, Value::Text(t), _)) => t.clone(),
+                    Some((_, _, at)) => return Err(syntax(at, "`focal_length` must be a <string> such as \"50mm\"")),
+                    None => "50mm".into(),
+                };
+                let mm: f64 = text
+                    .trim()
+                    .trim_end_matches("mm")
+                    .parse()
+                    .ok()
+                    .filter(|f: &f64| f.is_finite() && *f > 0.0)
+                    .ok_or_else(|| syntax(&s.at, format!("focal_length \"{text}\" is not a length in mm")))?;
+                // A 36×24 mm film: the diagonal's field of view.
+                ((36f64.hypot(24.0) / (2.0 * mm)).atan().to_degrees() * 2.0, "diagonal".into())
+            }
+        };
+        if width < 1 || height < 1 || width > i64::from(u32::MAX) || height > i64::from(u32::MAX) {
+            return Err(syntax(&s.at, format!("the film must be at least 1×1, got {width}×{height}")));
+        }
+        self.camera(to_world, fov, &axis, width as u32, height as u32, &s.at)?;
+        self.out.camera.crop = crop;
+        Ok(())
+    }
+
+    /// The camera of a Mitsuba sensor: its `to_world` (+z forward, +y up, +x to the image's
+    /// left) and field of view `fov` degrees along `axis`.
+    fn camera(&mut self, to_world: DMat4, fov: f64, axis: &str, width: u32, height: u32, at: &At) -> Result<()> {
+        let (w, h) = (f64::from(width), f64::from(height));
+        let half = (fov.to_radians() / 2.0).tan();
+        let tan_y = match axis {
+            "x" => half * h / w,
+            "y" => half,
+            "diagonal" => half * h / w.hypot(h),
+            "smaller" => {
+                if w < h {
+                    half * h / w
+                } else {
+                    half
+                }
+            }
+            "larger" => {
+                if w > h {
+                    half * h / w
+                } else {
+                    half
+                }
+            }
+            other => return Err(syntax(at, format!("unknown fov_axis \"{other}\""))),
+        };
+        let fov_y = (2.0 * tan_y.atan()).to_degrees();
+        let eye = to_world.transform_point3(DVec3::ZERO);
+        let forward = to_world.transform_vector3(DVec3::Z).normalize_or_zero();
+        let up = to_world.transform_vector3(DVec3::Y).normalize_or_zero();
+        let left = to_world.transform_vector3(DVec3::X);
+        // Our camera's right is forward × up; Mitsuba's image right is −x. They disagree
+        // when `to_world` mirrors.
+        let mirror = forward.cross(up).dot(left) > 0.0;
+        self.out.camera = CameraDescription {
+            eye: eye.as_vec3().to_array(),
+            look_at: (eye + forward).as_vec3().to_array(),
+            up: up.as_vec3().to_array(),
+            fov_y: fov_y as f32,
+            width,
+            height,
+            crop: None,
+            mirror,
+        };
+        Ok(())
+    }
+}
+
+/// A 4×4 matrix as rows.
+fn to_rows(m: DMat4) -> [[f32; 4]; 4] {
+    let t = m.transpose();
+    [t.x_axis, t.y_axis, t.z_axis, t.w_axis].map(|r| r.as_vec4().to_array())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read(body: &str, defines: &[(&str, &str)], strict: bool) -> Result<Imported> {
+        let text = format!("<scene version=\"3.0.0\">\n{body}\n</scene>\n");
+        let options = ImportOptions {
+            defines: defines.iter().map(|(a, b)| ((*a).to_string(), (*b).to_string())).collect(),
+            strict,
+        };
+        import(Path::new("/nowhere/scene.xml"), &text, &options)
+    }
+
+    fn ok(body: &str) -> SceneDescription {
+        read(body, &[], true).unwrap().description
+    }
+
+    fn message(r: Result<Imported>) -> String {
+        match r {
+            Err(e) => e.to_string(),
+            Ok(_) => panic!("expected an error"),
+        }
+    }
+
+    const SHAPE: &str = "<shape type=\"rectangle\"/>";
+
+    #[test]
+    fn defaults_and_defines_substitute() {
+        let body = "<default name=\"r\" value=\"0.25\"/>
+            <shape type=\"sphere\"><float name=\"radius\" value=\"$r\"/></shape>
+            <shape type=\"sphere\"><float name=\"radius\" value=\"${r}5\"/></shape>";
+        let d = ok(body);
+        assert_eq!(d.shapes[0].radius, Some(0.25));
+        assert_eq!(d.shapes[1].radius, Some(0.255));
+        let d = read(body, &[("r", "2")], true).unwrap().description;
+        assert_eq!(d.shapes[0].radius, Some(2.0), "-D wins over <default>");
+        let e =
+            message(read("<shape type=\"sphere\">\n<float name=\"radius\" value=\"$missing\"/></shape>", &[], false));
+        assert!(e.contains("line 3") && e.contains("$missing"), "{e}");
+    }
+
+    #[test]
+    fn transforms_compose_in_order() {
+        let d = ok("<shape type=\"rectangle\"><transform name=\"to_world\">
+                <scale value=\"2\"/><translate x=\"1\"/><rotate z=\"1\" angle=\"90\"/>
+            </transform></shape>");
+        // x ↦ 2x, then +1 along x, then a quarter turn about z: (1, 0, 0) ↦ (3, 0, 0) ↦ (0, 3, 0).
+        let m = d.shapes[0].matrix.unwrap();
+        let p = [1.0f32, 0.0, 0.0, 1.0];
+        let q: Vec<f32> = (0..3).map(|r| (0..4).map(|c| m[r][c] * p[c]).sum()).collect();
+        assert!((q[0] - 0.0).abs() < 1e-6 && (q[1] - 3.0).abs() < 1e-6 && q[2].abs() < 1e-6, "{q:?}");
+        let d = ok("<shape type=\"rectangle\"><transform name=\"to_world\">
+                <matrix value=\"1 0 0 5  0 1 0 6  0 0 1 7  0 0 0 1\"/></transform></shape>");
+        assert_eq!(d.shapes[0].matrix.unwrap()[1], [0.0, 1.0, 0.0, 6.0]);
+    }
+
+    /// Mitsuba's `fov` is across `fov_axis` (x by default); ours is vertical.
+    #[test]
+    fn field_of_view_axes() {
+        let fov_y = |axis: &str, w: u32, h: u32| {
+            let d = ok(&format!(
+                "{SHAPE}<sensor type=\"perspective\"><float name=\"fov\" value=\"60\"/>
+                 <string name=\"fov_axis\" value=\"{axis}\"/>
+                 <film type=\"hdrfilm\"><integer name=\"width\" value=\"{w}\"/><integer name=\"height\" value=\"{h}\"/></film>
+                 </sensor>"
+            ));
+            f64::from(d.camera.fov_y)
+        };
+        let t = 30f64.to_radians().tan();
+        let deg = |x: f64| (2.0 * x.atan()).to_degrees();
+        assert!((fov_y("x", 400, 200) - deg(t / 2.0)).abs() < 1e-4);
+        assert!((fov_y("y", 400, 200) - 60.0).abs() < 1e-4);
+        assert!((fov_y("diagonal", 400, 300) - deg(t * 300.0 / 500.0)).abs() < 1e-4);
+        assert!((fov_y("smaller", 400, 200) - 60.0).abs() < 1e-4);
+        assert!((fov_y("smaller", 200, 400) - deg(t * 2.0)).abs() < 1e-4);
+        assert!((fov_y("larger", 400, 200) - deg(t / 2.0)).abs() < 1e-4);
+        let d = ok(SHAPE);
+        assert_eq!((d.camera.width, d.camera.height), (768, 576), "Mitsuba's default film");
+    }
+
+    /// `lookat` gives our camera as it is; a mirroring `to_world` sets `mirror`; a crop window.
+    #[test]
+    fn camera_frame_mirror_and_crop() {
+        let sensor = |extra: &str| {
+            ok(&format!(
+                "{SHAPE}<sensor type=\"perspective\"><transform name=\"to_world\">{extra}
+                 <lookat origin=\"1, 2, 3\" target=\"1, 2, 0\" up=\"0, 1, 0\"/></transform>
+                 <film type=\"hdrfilm\"><integer name=\"crop_offset_x\" value=\"10\"/>
+                 <integer name=\"crop_width\" value=\"20\"/></film></sensor>"
+            ))
+            .camera
+        };
+        let c = sensor("");
+        assert_eq!(c.eye, [1.0, 2.0, 3.0]);
+        assert!((c.look_at[2] - 2.0).abs() < 1e-6 && c.up == [0.0, 1.0, 0.0] && !c.mirror);
+        assert_eq!(c.crop, Some([10, 0, 20, 576]));
+        assert!(sensor("<scale x=\"-1\"/>").mirror);
+    }
+
+    #[test]
+    fn materials_and_their_defaults() {
+        let d = ok("<bsdf type=\"roughconductor\" id=\"m\"><string name=\"material\" value=\"Cu\"/>
+                <string name=\"distribution\" value=\"ggx\"/></bsdf>
+            <shape type=\"cube\"><ref id=\"m\"/></shape>
+            <shape type=\"cube\"><bsdf type=\"dielectric\"><string name=\"int_ior\" value=\"water\"/></bsdf></shape>
+            <shape type=\"cube\"><bsdf type=\"twosided\"><bsdf type=\"plastic\"/></bsdf></shape>
+            <shape type=\"cube\"/>");
+        let m: Vec<&MaterialDescription> = d.shapes.iter().map(|s| &d.materials[&s.material]).collect();
+        assert_eq!(
+            (m[0].kind, m[0].metal.as_deref(), m[0].roughness),
+            (MaterialKind::Conductor, Some("Cu"), Some(0.1))
+        );
+        assert_eq!(m[0].two_sided, Some(false), "Mitsuba's surfaces are one-sided");
+        assert_eq!((m[1].kind, m[1].ior, m[1].exterior_ior), (MaterialKind::Dielectric, Some(1.333), Some(1.000_277)));
+        assert_eq!((m[2].kind, m[2].ior, m[2].two_sided), (MaterialKind::Plastic, Some(1.49), Some(true)));
+        assert_eq!((m[2].diffuse, m[3].diffuse), ([0.5; 3], [0.5; 3]));
+        let e = message(read("<shape type=\"cube\"><ref id=\"nope\"/></shape>", &[], false));
+        assert!(e.contains("nope") && e.contains("line 2"), "{e}");
+    }
+
+    /// Outside the subset: one warning naming element, file and line, and the fallback; an
+    /// error with `strict`.
+    #[test]
+    fn unsupported_warns_or_fails() {
+        let body = "<shape type=\"cube\">\n<bsdf type=\"hair\"/></shape>";
+        let r = read(body, &[], false).unwrap();
+        assert_eq!(r.warnings.len(), 1, "{:?}", r.warnings);
+        assert!(r.warnings[0].starts_with("/nowhere/scene.xml:3:") && r.warnings[0].contains("grey diffuse"));
+        let r = read("<shape type=\"cube\"><bsdf type=\"roughplastic\"/></shape>", &[], false).unwrap();
+        assert!(r.warnings[0].contains("beckmann") && r.warnings[0].contains("GGX"), "{:?}", r.warnings);
+        let e = message(read(body, &[], true));
+        assert!(e.contains("line 3") && e.contains("hair") && e.contains("--strict"), "{e}");
+        let r = read("<shape type=\"serialized\"/><emitter type=\"directional\"/>", &[], false).unwrap();
+        assert_eq!(r.warnings.len(), 2);
+    }
+
+    #[test]
+    fn malformed_files_are_one_error() {
+        for (body, want) in [
+            ("<shape type=\"cube\">", "line"),
+            ("<float name=\"x\" value=\"1e999\"/>", "not finite"),
+            ("<rgb name=\"x\" value=\"1, 2\"/>", "1 or 3 numbers"),
+            ("<shape type=\"cube\"><transform name=\"to_world\"><rotate angle=\"3\"/></transform></shape>", "axis"),
+            ("<shape type=\"cube\"><transform name=\"to_world\"><matrix value=\"1 2 3\"/></transform></shape>", "16"),
+            ("<boolean name=\"b\" value=\"yes\"/>", "true nor false"),
+            ("<sensor type=\"orthographic\"/>", "perspective"),
+        ] {
+            let e = message(read(body, &[], false));
+            assert!(e.contains(want), "{body}: {e}");
+        }
+        let deep = "<bsdf type=\"diffuse\">".repeat(100) + &"</bsdf>".repeat(100);
+        assert!(message(read(&deep, &[], false)).contains("nest"));
+    }
+
+    #[test]
+    fn includes_and_their_cycles() {
+        let dir = std::env::temp_dir().join(format!("zvidpt-mitsuba-include-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("sub")).unwrap();
+        std::fs::write(dir.join("sub/part.xml"), "<scene version=\"3.0.0\"><shape type=\"sphere\"/></scene>").unwrap();
+        std::fs::write(dir.join("loop.xml"), "<scene version=\"3.0.0\"><include filename=\"loop.xml\"/></scene>")
+            .unwrap();
+        let main = dir.join("main.xml");
+        let text = "<scene version=\"3.0.0\"><include filename=\"sub/part.xml\"/></scene>";
+        let r = import(&main, text, &ImportOptions::default()).unwrap();
+        assert_eq!(r.description.shapes.len(), 1);
+        assert!(r.sources.contains(&dir.join("sub/part.xml")));
+        let text = "<scene version=\"3.0.0\"><include filename=\"loop.xml\"/></scene>";
+        let e = message(import(&main, text, &ImportOptions::default()));
+        assert!(e.contains("deeper"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn emitters_and_render_settings() {
+        let d = ok("<shape type=\"rectangle\"><emitter type=\"area\"><rgb name=\"radiance\" value=\"3\"/></emitter></shape>
+            <emitter type=\"point\"><point name=\"position\" value=\"1, 2, 3\"/><rgb name=\"intensity\" value=\"5\"/></emitter>
+            <emitter type=\"spot\"><transform name=\"to_world\"><lookat origin=\"0, 4, 0\" target=\"0, 0, 0\" up=\"0, 0, 1\"/></transform>
+                <float name=\"cutoff_angle\" value=\"30\"/></emitter>
+            <emitter type=\"constant\"><spectrum name=\"radiance\" value=\"0.5\"/></emitter>
+            <integrator type=\"path\"><integer name=\"max_depth\" value=\"4\"/></integrator>
+            <sensor type=\"perspective\"><sampler type=\"independent\"><integer name=\"sample_count\" value=\"9\"/></sampler></sensor>");
+        assert_eq!(d.materials[&d.shapes[0].material].emission, [3.0; 3]);
+        assert_eq!((d.lights[0].position, d.lights[0].intensity), ([1.0, 2.0, 3.0], [5.0; 3]));
+        let spot = &d.lights[1];
+        assert_eq!(
+            (spot.kind, spot.position, spot.cutoff, spot.beam),
+            (LightKind::Spot, [0.0, 4.0, 0.0], Some(30.0), Some(22.5))
+        );
+        assert!((spot.direction.unwrap()[1] + 1.0).abs() < 1e-6);
+        assert_eq!(d.environment.as_ref().unwrap().radiance, Some([0.5; 3]));
+        let r = d.render.unwrap();
+        assert_eq!((r.spp, r.max_depth), (Some(9), Some(4)));
+    }
+}
