@@ -19,6 +19,15 @@ pub fn scene_toml(data: &[u8]) {
     }
 }
 
+/// Mitsuba 3 scene files: the XML reader, the translation and the scene it builds (as
+/// `scene.xml` beside the TOML target's files, so that meshes and includes resolve).
+pub fn mitsuba(data: &[u8]) {
+    if let Ok(text) = std::str::from_utf8(data) {
+        let options = crate::scene::import::ImportOptions::default();
+        let _ = Scene::parse_mitsuba(text, &scene_folder().join("scene.xml"), &options);
+    }
+}
+
 /// OBJ meshes: the bytes up to the first NUL are the OBJ, the rest its MTL library.
 pub fn obj(data: &[u8]) {
     let (obj, mtl) = match data.iter().position(|&b| b == 0) {

@@ -33,6 +33,11 @@ fn obj_corpus() {
 }
 
 #[test]
+fn mitsuba_corpus() {
+    assert!(replay("mitsuba", zvidpt::fuzzing::mitsuba) >= 5);
+}
+
+#[test]
 fn ply_corpus() {
     assert!(replay("ply", zvidpt::fuzzing::ply) >= 3);
 }

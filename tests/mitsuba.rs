@@ -84,7 +84,8 @@ fn renders_as_mitsuba_renders_it() {
 /// `--strict` work; a malformed file is one `error:` line naming file and line.
 #[test]
 fn command_line() {
-    let out = scratch("mitsuba", "cli.exr");
+    let dir_out = scratch("mitsuba", "cli");
+    let out = dir_out.join("cli.exr");
     let o = zvidpt(&[
         "render",
         dir().join("box.xml").to_str().unwrap(),
@@ -103,22 +104,21 @@ fn command_line() {
     let (image, _) = read_exr(&out).unwrap();
     assert_eq!((image.width, image.height, image.spp), (32, 24, 64));
 
-    let bad = scratch("mitsuba", "bad.xml");
+    let bad = dir_out.join("bad.xml");
     std::fs::write(&bad, "<scene version=\"3.0.0\">\n  <shape type=\"rectangle\">\n    <float name=\"x\" value=\"one\"/>\n  </shape>\n</scene>\n").unwrap();
-    let o = zvidpt(&["render", bad.to_str().unwrap(), "-o", scratch("mitsuba", "bad.exr").to_str().unwrap()]);
+    let o = zvidpt(&["render", bad.to_str().unwrap(), "-o", dir_out.join("bad.exr").to_str().unwrap()]);
     assert!(!o.status.success());
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
     assert!(stderr.starts_with("error:") && stderr.contains("bad.xml") && stderr.contains("line 3"), "{stderr}");
 
-    let odd = scratch("mitsuba", "odd.xml");
+    let odd = dir_out.join("odd.xml");
     std::fs::write(
         &odd,
         "<scene version=\"3.0.0\">\n<shape type=\"rectangle\"><bsdf type=\"hair\"/></shape>\n</scene>\n",
     )
     .unwrap();
-    let o =
-        zvidpt(&["render", odd.to_str().unwrap(), "--strict", "-o", scratch("mitsuba", "odd.exr").to_str().unwrap()]);
+    let o = zvidpt(&["render", odd.to_str().unwrap(), "--strict", "-o", dir_out.join("odd.exr").to_str().unwrap()]);
     assert!(!o.status.success());
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(

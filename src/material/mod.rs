@@ -88,9 +88,9 @@ impl RoughCoat {
     }
 }
 
-/// The directional albedo of a rough dielectric interface's reflection, `∫ f_r cos θo dωo` for
-/// incidence `wi`: the visible-normal sampling's weight `F·G/G1` averaged by a midpoint rule of
-/// 64 × 64 over its square.
+/// The directional albedo of a rough dielectric interface's reflection for incidence `wi`, as
+/// Mitsuba 3 tabulates it: over visible normals `m`, the mean of `F(wi·m)·G1(wo, m)` (its
+/// uncorrelated masking), by a midpoint rule of 64 × 64 over the sampling's square.
 fn rough_reflectance(ggx: Ggx, eta: f32, wi: Vec3A) -> f64 {
     const N: usize = 64;
     let mut sum = 0.0f64;
@@ -101,7 +101,40 @@ fn rough_reflectance(ggx: Ggx, eta: f32, wi: Vec3A) -> f64 {
             let wo = reflect(wi, m);
             let c = wi.dot(m);
             if wo.z > 0.0 && c > 0.0 {
-                let w = fresnel::dielectric(c, eta).0 * ggx.g(wi, wo, m) / ggx.g1(wi, m);
+                let w = fresnel::dielectric(c, eta).0 * ggx.g1(wo, m);
+                if w.is_finite() {
+                    sum += f64::from(w);
+                }
+            }
+        }
+    }
+    sum / (N * N) as f64
+}
+
+/// The share of light from `wi` that a rough dielectric interface lets through, as Mitsuba 3
+/// (since 3.0's `eval_transmittance`) tabulates a rough plastic's coat: over visible normals
+/// `m`, the mean of `(1 − F(wi·m))·G1(wt, m)` with `wt` the refracted direction, so that
+/// refracted light the microsurface masks does not reach the base. (`1 − R`, which ignores that
+/// masking, is 13% higher at `cos θ = 0.1` for `α = 0.15`, `η = 1.5`: Mitsuba's images differed
+/// by that much.)
+fn rough_transmittance(ggx: Ggx, eta: f32, wi: Vec3A) -> f64 {
+    const N: usize = 64;
+    let mut sum = 0.0f64;
+    for a in 0..N {
+        for b in 0..N {
+            let u = Vec2::new((a as f32 + 0.5) / N as f32, (b as f32 + 0.5) / N as f32);
+            let m = ggx.sample_visible(wi, u);
+            let c = wi.dot(m);
+            if c <= 0.0 {
+                continue;
+            }
+            let (f, cos_t, eta_it) = fresnel::dielectric(c, eta);
+            if f >= 1.0 {
+                continue;
+            }
+            let wt = refract(wi, m, eta_it, c, cos_t);
+            if wt.z < 0.0 {
+                let w = (1.0 - f) * ggx.g1(wt, m);
                 if w.is_finite() {
                     sum += f64::from(w);
                 }
@@ -129,7 +162,7 @@ fn rough_coat(alpha: f32, eta: f32) -> (RoughCoat, f32) {
         for (i, t) in table.iter_mut().enumerate() {
             let mu = (i as f32 / (COAT_TABLE - 1) as f32).max(1e-6);
             let wi = Vec3A::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
-            *t = (1.0 - rough_reflectance(ggx, eta, wi)) as f32;
+            *t = rough_transmittance(ggx, eta, wi) as f32;
             inside += rough_reflectance(ggx, 1.0 / eta, wi) * f64::from(mu);
         }
         (&*Box::leak(Box::new(table)), (2.0 * inside / COAT_TABLE as f64) as f32)

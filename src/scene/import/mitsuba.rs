@@ -21,10 +21,13 @@ use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
 
-/// Largest scene file read (text), as for TOML scenes.
-const MAX_FILE_BYTES: u64 = 64 << 20;
+/// Largest included file read (text), as for a scene file.
+const MAX_FILE_BYTES: u64 = 16 << 20;
 /// Deepest nesting of `<include>`s (a cycle stops here).
 const MAX_INCLUDE_DEPTH: usize = 16;
+/// Most `<include>`s read in all (files that include each other many times over would
+/// otherwise multiply).
+const MAX_INCLUDES: usize = 1024;
 /// Deepest nesting of elements (roxmltree's own limit is far deeper; a recursive walk must
 /// not overflow the stack on a hostile file).
 const MAX_ELEMENT_DEPTH: usize = 64;
@@ -251,6 +254,9 @@ impl Reader<'_> {
                     let path = resolve(file, &name);
                     if self.include_depth >= MAX_INCLUDE_DEPTH {
                         return Err(syntax(&at, format!("includes nest deeper than {MAX_INCLUDE_DEPTH} (a cycle?)")));
+                    }
+                    if self.files.len() > MAX_INCLUDES {
+                        return Err(syntax(&at, format!("more than {MAX_INCLUDES} included files")));
                     }
                     let text = crate::scene::read_text(&path, MAX_FILE_BYTES, "included file")?;
                     self.files.push(path.clone());
