@@ -189,6 +189,28 @@ impl Discrete {
     }
 }
 
+/// pbrt-v4's equal-area octahedral map (Clarberg 2008) from a unit direction to `[0, 1]²`:
+/// the upper hemisphere (`z ≥ 0`) fills the inner diamond, the lower one the corners.
+#[must_use]
+pub fn equal_area_sphere_to_square(d: Vec3A) -> Vec2 {
+    let (x, y, z) = (d.x.abs(), d.y.abs(), d.z.abs());
+    let r = (1.0 - z).max(0.0).sqrt();
+    let (a, b) = (x.max(y), x.min(y));
+    let b = if a == 0.0 { 0.0 } else { b / a };
+    let mut phi = b.atan() * std::f32::consts::FRAC_2_PI;
+    if x < y {
+        phi = 1.0 - phi;
+    }
+    let mut v = phi * r;
+    let mut u = r - v;
+    if d.z < 0.0 {
+        std::mem::swap(&mut u, &mut v);
+        u = 1.0 - u;
+        v = 1.0 - v;
+    }
+    Vec2::new((u.copysign(d.x) + 1.0) * 0.5, (v.copysign(d.y) + 1.0) * 0.5)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -354,3 +376,4 @@ mod tests {
         assert!(Discrete::new(&[f32::NAN]).is_none());
     }
 }
+

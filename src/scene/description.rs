@@ -22,6 +22,25 @@ pub struct SceneDescription {
     pub environment: Option<EnvironmentDescription>,
     /// What the scene asks of a render: the command line's flags win.
     pub render: Option<RenderDescription>,
+    /// Triangle meshes given inline by an imported scene (pbrt's `trianglemesh`); not part of
+    /// the TOML format.
+    #[serde(skip)]
+    pub inline_meshes: Vec<InlineMesh>,
+}
+
+/// A triangle mesh written out in an imported scene file, already placed in the world.
+#[derive(Debug, Clone, Default)]
+pub struct InlineMesh {
+    /// Where it was written (`file:line`), for errors.
+    pub origin: String,
+    pub positions: Vec<[f32; 3]>,
+    /// Three per triangle.
+    pub indices: Vec<u32>,
+    /// Per vertex, when given.
+    pub normals: Option<Vec<[f32; 3]>>,
+    pub uvs: Option<Vec<[f32; 2]>>,
+    pub material: String,
+    pub reverse_winding: bool,
 }
 
 /// A scene's defaults for rendering it (Mitsuba's `sampler` and `integrator`).
@@ -65,6 +84,19 @@ pub struct EnvironmentDescription {
     pub radiance: Option<[f32; 3]>,
     pub map: Option<String>,
     pub scale: Option<f32>,
+    /// How the map's image covers the sphere: `equirectangular` (the default, as above) or
+    /// `equal_area` (pbrt-v4's octahedral equal-area square, +z up).
+    pub layout: Option<MapLayout>,
+    /// A rotation of the map into the world (row-major 4×4; its linear part is used).
+    pub matrix: Option<[[f32; 4]; 4]>,
+}
+
+/// How an environment map's image covers the sphere.
+#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum MapLayout {
+    Equirectangular,
+    EqualArea,
 }
 
 /// A pinhole camera.

@@ -1,6 +1,6 @@
 //! Loading a scene: the TOML file, its OBJ/MTL meshes, and every check that turns bad input
 //! into an error naming the file (and line, where the parser knows it).
-use super::description::{LightKind, MaterialDescription, SceneDescription, ShapeDescription, ShapeKind};
+use super::description::{LightKind, MapLayout, MaterialDescription, SceneDescription, ShapeDescription, ShapeKind};
 use super::import::{Format, ImportOptions};
 use super::{Attributes, Camera, Lights, Material, Scene, TextureSlots};
 use crate::geometry::{Vec2, Vec3A};
@@ -79,7 +79,8 @@ pub(crate) fn check_resolution(width: u32, height: u32) -> Result<(), String> {
     Ok(())
 }
 
-/// A scene argument is a scene file or a folder holding `scene.toml` (or else `scene.xml`).
+/// A scene argument is a scene file or a folder holding `scene.toml` (or else `scene.xml`,
+/// or `scene.pbrt`).
 #[must_use]
 pub fn resolve_scene_path(path: &Path) -> PathBuf {
     if !path.is_dir() {
@@ -89,7 +90,7 @@ pub fn resolve_scene_path(path: &Path) -> PathBuf {
     if toml.exists() {
         return toml;
     }
-    ["scene.xml"].iter().map(|f| path.join(f)).find(|p| p.exists()).unwrap_or(toml)
+    ["scene.xml", "scene.pbrt"].iter().map(|f| path.join(f)).find(|p| p.exists()).unwrap_or(toml)
 }
 
 impl Scene {
@@ -106,17 +107,28 @@ impl Scene {
         match Format::of(&path) {
             Format::Toml => Scene::parse(&text, &path),
             Format::Mitsuba => Scene::parse_mitsuba(&text, &path, options),
+            Format::Pbrt => Scene::parse_pbrt(&text, &path, options),
         }
+    }
+
+    /// A pbrt-v4 scene from the text of its file (see [`super::import::pbrt`]).
+    pub fn parse_pbrt(text: &str, path: &Path, options: &ImportOptions) -> Result<Scene> {
+        let imported = super::import::pbrt::import(path, text, options)?;
+        Scene::imported(path, imported.description, imported.warnings, imported.sources)
     }
 
     /// A Mitsuba 3 scene from the text of its file (see [`super::import::mitsuba`]).
     pub fn parse_mitsuba(text: &str, path: &Path, options: &ImportOptions) -> Result<Scene> {
         let imported = super::import::mitsuba::import(path, text, options)?;
-        let mut scene = build(path, imported.description)?;
-        let mut warnings = imported.warnings;
+        Scene::imported(path, imported.description, imported.warnings, imported.sources)
+    }
+
+    /// A scene from an importer's description, its warnings first and its files as sources.
+    fn imported(path: &Path, d: SceneDescription, mut warnings: Vec<String>, files: Vec<PathBuf>) -> Result<Scene> {
+        let mut scene = build(path, d)?;
         warnings.append(&mut scene.warnings);
         scene.warnings = warnings;
-        for file in imported.sources.into_iter().rev() {
+        for file in files.into_iter().rev() {
             if !scene.sources.contains(&file) {
                 scene.sources.insert(0, file);
             }
@@ -474,6 +486,9 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
     for (k, shape) in d.shapes.iter().enumerate() {
         add_shape(path, k, shape, &mut meshes)?;
     }
+    for mesh in &d.inline_meshes {
+        add_inline_mesh(path, mesh, &mut meshes)?;
+    }
     let Meshes { materials, geometry: Geometry { triangles, triangle_material, attributes, findings }, .. } = meshes;
     if triangles.is_empty() {
         return Err(invalid(path, "the scene has no (non-degenerate) triangles"));
@@ -572,6 +587,27 @@ fn lights_from(path: &Path, d: &SceneDescription) -> Result<(Lights, Vec<PathBuf
                     });
                 }
                 sources.push(file.clone());
+                let layout = e.layout.unwrap_or(MapLayout::Equirectangular);
+                let rotation = match e.matrix {
+                    None => None,
+                    Some(m) => {
+                        let (linear, _) = affine(m).map_err(|m| invalid(path, format!("environment: {m}")))?;
+                        let r = glam::Mat3A::from_cols(
+                            linear.x_axis.normalize_or_zero(),
+                            linear.y_axis.normalize_or_zero(),
+                            linear.z_axis.normalize_or_zero(),
+                        );
+                        if !(r.determinant() - 1.0).abs().lt(&1e-3) {
+                            return Err(invalid(path, "environment: `matrix` must be a rotation"));
+                        }
+                        Some(r)
+                    }
+                };
+                let (w, h, texels) = if layout == MapLayout::Equirectangular && rotation.is_none() {
+                    (w, h, texels)
+                } else {
+                    equirectangular_from(layout, rotation.unwrap_or(glam::Mat3A::IDENTITY), w, h, &texels)
+                };
                 Environment::from_texels(w, h, texels.into_iter().map(|t| t * scale).collect()).map_err(
                     |e| match e {
                         Error::InvalidOption(m) => Error::Image { path: file.clone(), message: m },
@@ -674,6 +710,89 @@ fn smooth_normals_since(g: &mut Geometry, start: usize) {
     for (i, c) in smooth {
         g.attributes.normals[i] = c;
     }
+}
+
+/// Adds an imported scene's inline triangle mesh (positions already in the world).
+fn add_inline_mesh(path: &Path, m: &super::description::InlineMesh, meshes: &mut Meshes) -> Result<()> {
+    let err = |message: String| invalid(path, format!("{}: {message}", m.origin));
+    let material = *meshes.by_name.get(&m.material).ok_or_else(|| err(format!("unknown material `{}`", m.material)))?;
+    let n = m.positions.len();
+    if !m.indices.len().is_multiple_of(3) {
+        return Err(err(format!("{} indices are not whole triangles", m.indices.len())));
+    }
+    if let Some(&i) = m.indices.iter().find(|&&i| i as usize >= n) {
+        return Err(err(format!("vertex index {i} out of range ({n} vertices)")));
+    }
+    for (what, len) in [("normals", m.normals.as_ref().map(Vec::len)), ("uv", m.uvs.as_ref().map(Vec::len))] {
+        if len.is_some_and(|l| l != n) {
+            return Err(err(format!("{} {what} for {n} vertices", len.unwrap_or(0))));
+        }
+    }
+    for t in m.indices.chunks_exact(3) {
+        let idx = [t[0] as usize, t[1] as usize, t[2] as usize];
+        let mut tri = idx.map(|i| vec3(m.positions[i]));
+        let mut corners = Corners {
+            normals: m.normals.as_ref().map(|v| idx.map(|i| vec3(v[i]))),
+            uvs: m.uvs.as_ref().map(|v| idx.map(|i| Vec2::from_array(v[i]))),
+        };
+        if m.reverse_winding {
+            tri.swap(1, 2);
+            corners.swap();
+            corners.normals = corners.normals.map(|c| c.map(|v| -v));
+        }
+        push_triangle(&mut meshes.geometry, tri, corners, material).map_err(err)?;
+    }
+    Ok(())
+}
+
+/// An environment map resampled (bilinearly) into our layout, equirectangular with +y up,
+/// from `layout` turned into the world by `rotation`: a square `N`×`N` equal-area map becomes
+/// `2N`×`N`, an equirectangular one keeps its size.
+fn equirectangular_from(
+    layout: MapLayout,
+    rotation: glam::Mat3A,
+    w: usize,
+    h: usize,
+    texels: &[Vec3A],
+) -> (usize, usize, Vec<Vec3A>) {
+    use std::f32::consts::{PI, TAU};
+    let (out_w, out_h) = match layout {
+        MapLayout::EqualArea => (2 * h, h),
+        MapLayout::Equirectangular => (w, h),
+    };
+    let texel = |x: i64, y: i64, wrap_x: bool| -> Vec3A {
+        let x = if wrap_x { x.rem_euclid(w as i64) } else { x.clamp(0, w as i64 - 1) };
+        texels[y.clamp(0, h as i64 - 1) as usize * w + x as usize]
+    };
+    let lookup = |u: f32, v: f32, wrap_x: bool| -> Vec3A {
+        let (x, y) = (u * w as f32 - 0.5, v * h as f32 - 0.5);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let top = texel(x0, y0, wrap_x) * (1.0 - fx) + texel(x0 + 1, y0, wrap_x) * fx;
+        let bottom = texel(x0, y0 + 1, wrap_x) * (1.0 - fx) + texel(x0 + 1, y0 + 1, wrap_x) * fx;
+        top * (1.0 - fy) + bottom * fy
+    };
+    let inverse = rotation.transpose();
+    let mut out = Vec::with_capacity(out_w * out_h);
+    for j in 0..out_h {
+        for i in 0..out_w {
+            let (phi, theta) = (TAU * (i as f32 + 0.5) / out_w as f32, PI * (j as f32 + 0.5) / out_h as f32);
+            let d = Vec3A::new(theta.sin() * phi.sin(), theta.cos(), -theta.sin() * phi.cos());
+            let m = inverse * d;
+            out.push(match layout {
+                MapLayout::Equirectangular => {
+                    let u = m.x.atan2(-m.z) / TAU;
+                    lookup(u.rem_euclid(1.0), m.y.clamp(-1.0, 1.0).acos() / PI, true)
+                }
+                MapLayout::EqualArea => {
+                    let uv = crate::geometry::warp::equal_area_sphere_to_square(m);
+                    lookup(uv.x, uv.y, false)
+                }
+            });
+        }
+    }
+    (out_w, out_h, out)
 }
 
 /// The affine map of a shape's placement: `(linear part, translation)`.
@@ -967,8 +1086,28 @@ struct Meshes {
 /// Adds the triangles of the PLY file `ply_path`, all of `material` (polygons triangulated as
 /// OBJ faces are; vertex normals and texture coordinates kept where every vertex has them).
 fn load_ply(ply_path: &Path, material: u32, reverse: bool, geometry: &mut Geometry) -> Result<()> {
-    let bytes = read_bounded(ply_path, MAX_MESH_BYTES, "mesh (PLY) file")?;
+    let mut bytes = read_bounded(ply_path, MAX_MESH_BYTES, "mesh (PLY) file")?;
+    if ply_path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gz")) {
+        bytes = gunzip(ply_path, &bytes)?;
+    }
     ply_into(ply_path, &bytes, material, reverse, geometry)
+}
+
+/// A gzip file's contents (pbrt's `.ply.gz`), at most [`MAX_MESH_BYTES`] of them.
+fn gunzip(path: &Path, bytes: &[u8]) -> Result<Vec<u8>> {
+    use std::io::Read;
+    let mut out = Vec::new();
+    flate2::read::GzDecoder::new(bytes)
+        .take(MAX_MESH_BYTES + 1)
+        .read_to_end(&mut out)
+        .map_err(|e| Error::Mesh { path: path.to_path_buf(), message: format!("not a valid gzip file ({e})") })?;
+    if out.len() as u64 > MAX_MESH_BYTES {
+        return Err(Error::Mesh {
+            path: path.to_path_buf(),
+            message: format!("decompresses to more than {MAX_MESH_BYTES} bytes"),
+        });
+    }
+    Ok(out)
 }
 
 /// Adds the triangles of PLY bytes `bytes` (named `ply_path` in errors).
@@ -1399,5 +1538,34 @@ mod ply_tests {
         let e = Scene::parse(&format!("{head}ply = \"bad.ply\"\n"), &dir.join("scene.toml")).unwrap_err().to_string();
         assert!(e.contains("bad.ply") && e.contains("face 1: vertex index 9 out of range"), "{e}");
         std::fs::remove_dir_all(dir).ok();
+    }
+}
+
+#[cfg(test)]
+mod environment_tests {
+    use super::*;
+
+    /// An equal-area map bright only around its centre (pbrt's +z) lands, resampled, around
+    /// our +z (the middle of the equirectangular image); turned by a rotation taking +z to +y,
+    /// at the top row.
+    #[test]
+    fn equal_area_maps_are_resampled_where_they_point() {
+        let n = 32;
+        let texels: Vec<Vec3A> = (0..n * n)
+            .map(|k| {
+                let (i, j) = ((k % n) as f32 + 0.5, (k / n) as f32 + 0.5);
+                let near_centre = (i / n as f32 - 0.5).abs() + (j / n as f32 - 0.5).abs() < 0.1;
+                if near_centre { Vec3A::ONE } else { Vec3A::ZERO }
+            })
+            .collect();
+        let (w, h, out) = equirectangular_from(MapLayout::EqualArea, glam::Mat3A::IDENTITY, n, n, &texels);
+        assert_eq!((w, h), (2 * n, n));
+        assert_eq!(out[(h / 2) * w + w / 2], Vec3A::ONE, "+z: u = 1/2, v = 1/2");
+        assert_eq!(out[w / 2], Vec3A::ZERO, "+y is dark");
+        let z_to_y = glam::Mat3A::from_rotation_x(-std::f32::consts::FRAC_PI_2);
+        assert!((z_to_y * Vec3A::Z - Vec3A::Y).length() < 1e-6);
+        let (_, _, turned) = equirectangular_from(MapLayout::EqualArea, z_to_y, n, n, &texels);
+        assert_eq!(turned[w / 2], Vec3A::ONE, "now at the top row");
+        assert_eq!(turned[(h / 2) * w + w / 2], Vec3A::ZERO);
     }
 }

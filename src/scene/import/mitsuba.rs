@@ -143,6 +143,7 @@ fn empty_description() -> SceneDescription {
         lights: Vec::new(),
         environment: None,
         render: None,
+        inline_meshes: Vec::new(),
     }
 }
 
@@ -1093,18 +1094,31 @@ impl Translator<'_, '_> {
             "constant" => {
                 self.check_params(e, &["radiance"])?;
                 let radiance = self.constant_colour(e, "radiance", [1.0; 3])?;
-                self.environment(e, EnvironmentDescription { radiance: Some(radiance), map: None, scale: None })?;
+                let env = EnvironmentDescription {
+                    radiance: Some(radiance),
+                    map: None,
+                    scale: None,
+                    layout: None,
+                    matrix: None,
+                };
+                self.environment(e, env)?;
             }
             "envmap" => {
                 self.check_params(e, &["filename", "scale", "to_world"])?;
                 let file = self.text(e, "filename")?.ok_or_else(|| syntax(&e.at, "an envmap needs `filename`"))?;
                 let scale = self.float(e, "scale", 1.0)? as f32;
+                // Mitsuba's map space is ours (+y up, u = atan2(x, −z)/2π): its rotation
+                // carries over.
                 let rotation = DMat4::from_cols(to_world.x_axis, to_world.y_axis, to_world.z_axis, DVec4::W);
-                if (rotation - DMat4::IDENTITY).to_cols_array().iter().any(|x| x.abs() > 1e-6) {
-                    self.unsupported(&e.at, "an envmap's `to_world` rotation is not supported: identity used".into())?;
-                }
                 let map = resolve(&e.at.file, &file).to_string_lossy().into_owned();
-                self.environment(e, EnvironmentDescription { radiance: None, map: Some(map), scale: Some(scale) })?;
+                let env = EnvironmentDescription {
+                    radiance: None,
+                    map: Some(map),
+                    scale: Some(scale),
+                    layout: None,
+                    matrix: (rotation != DMat4::IDENTITY).then(|| to_rows(rotation)),
+                };
+                self.environment(e, env)?;
             }
             "area" => self.unsupported(&e.at, "an area emitter outside a shape lights nothing: ignored".into())?,
             other => self.unsupported(&e.at, format!("<emitter type=\"{other}\"> is not supported: ignored"))?,

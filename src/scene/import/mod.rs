@@ -1,6 +1,7 @@
 //! Scenes in other renderers' formats, read into the description a TOML scene file gives
-//! ([`super::description::SceneDescription`]): Mitsuba 3 XML.
+//! ([`super::description::SceneDescription`]): Mitsuba 3 XML and pbrt-v4.
 pub(crate) mod mitsuba;
+pub(crate) mod pbrt;
 
 /// How foreign scene files are read.
 #[derive(Clone, Debug, Default)]
@@ -16,6 +17,7 @@ pub struct ImportOptions {
 pub enum Format {
     Toml,
     Mitsuba,
+    Pbrt,
 }
 
 impl Format {
@@ -23,6 +25,7 @@ impl Format {
     pub fn of(path: &std::path::Path) -> Self {
         match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
             Some("xml") => Format::Mitsuba,
+            Some("pbrt") => Format::Pbrt,
             _ => Format::Toml,
         }
     }
