@@ -376,4 +376,3 @@ mod tests {
         assert!(Discrete::new(&[f32::NAN]).is_none());
     }
 }
-
