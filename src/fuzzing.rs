@@ -28,6 +28,15 @@ pub fn mitsuba(data: &[u8]) {
     }
 }
 
+/// pbrt-v4 scene files: the tokenizer, the directives and the scene they build (as
+/// `scene.pbrt` beside the TOML target's files).
+pub fn pbrt(data: &[u8]) {
+    if let Ok(text) = std::str::from_utf8(data) {
+        let options = crate::scene::import::ImportOptions::default();
+        let _ = Scene::parse_pbrt(text, &scene_folder().join("scene.pbrt"), &options);
+    }
+}
+
 /// OBJ meshes: the bytes up to the first NUL are the OBJ, the rest its MTL library.
 pub fn obj(data: &[u8]) {
     let (obj, mtl) = match data.iter().position(|&b| b == 0) {

@@ -33,6 +33,11 @@ fn obj_corpus() {
 }
 
 #[test]
+fn pbrt_corpus() {
+    assert!(replay("pbrt", zvidpt::fuzzing::pbrt) >= 5);
+}
+
+#[test]
 fn mitsuba_corpus() {
     assert!(replay("mitsuba", zvidpt::fuzzing::mitsuba) >= 5);
 }
