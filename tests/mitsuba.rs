@@ -80,6 +80,32 @@ fn renders_as_mitsuba_renders_it() {
     assert!(z < 4.5, "largest block |z| {z:.2} against Mitsuba 3's image (ZVIDPT_TEST_VERBOSE=1 shows the blocks)");
 }
 
+/// Mitsuba's `max_depth` is ours: the box at depth 3 (emission, direct light and one bounce)
+/// against Mitsuba's image at depth 3 (16 × 1024 spp), same test and bound as above. An
+/// off-by-one in the depth moves whole blocks by tens of standard errors. Depth 0 is black;
+/// depth 1 only the light seen directly.
+#[test]
+fn max_depth_counts_as_mitsubas() {
+    let options = ImportOptions { defines: vec![("max_depth".into(), "3".into())], strict: true };
+    let scene = Scene::load_with(dir().join("box.xml"), &options).unwrap();
+    let ours = common::render_bvh(&scene, &mut PathTracer::default(), 1024, 1);
+    let (reference, _) = read_exr(&dir().join("box-mitsuba-depth3.exr")).unwrap();
+    let reference = Image { spp: 1, ..reference };
+    let (z, _) = common::max_block_z_both(&ours, &reference, 8);
+    assert!(z < 4.5, "largest block |z| {z:.2} against Mitsuba 3's depth-3 image");
+    for depth in [0, 1] {
+        let mut s = scene.clone();
+        s.render.max_depth = Some(depth);
+        let image = common::render_bvh(&s, &mut PathTracer::default(), 4, 1);
+        let light = [12.0f32, 11.0, 9.0];
+        for p in &image.pixels {
+            let seen_light = p.iter().zip(light).all(|(a, b)| (a / b - p[0] / 12.0).abs() < 1e-5);
+            assert!(*p == [0.0; 3] || (depth == 1 && seen_light), "depth {depth}: pixel {p:?}");
+        }
+        assert_eq!(image.pixels.iter().any(|p| p[0] > 0.0), depth == 1);
+    }
+}
+
 /// The command line: a scene given as XML renders with its own sample count; `-D` and
 /// `--strict` work; a malformed file is one `error:` line naming file and line.
 #[test]

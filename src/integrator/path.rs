@@ -86,12 +86,28 @@ impl Integrator for PathTracer {
         // On Lambertian scenes without an environment (the paper's) and without MIS at
         // Lambertian vertices, NEE alone counts light past the first hit: the loop without
         // the checks for emission found by BSDF sampling (same estimator, same bits).
-        if self.mis != Mis::All && ctx.lambertian_only {
-            trace_path::<A, true>(ctx, pixel, rng, scratch, self.rr_depth, self.mis, sample_bsdf)
-        } else {
-            trace_path::<A, false>(ctx, pixel, rng, scratch, self.rr_depth, self.mis, sample_bsdf)
+        // A bound on the path depth is a third variant. The general loops are called, not
+        // inlined here: inlining all three into the tile loop cost the Lambertian one 0.4%.
+        let (r, m) = (self.rr_depth, self.mis);
+        match (self.mis != Mis::All && ctx.lambertian_only, ctx.max_depth != u32::MAX) {
+            (true, false) => trace_path::<A, true, false>(ctx, pixel, rng, scratch, r, m, sample_bsdf),
+            (false, false) => general_path::<A, false>(ctx, pixel, rng, scratch, r, m),
+            (_, true) => general_path::<A, true>(ctx, pixel, rng, scratch, r, m),
         }
     }
+}
+
+/// [`trace_path`] with BSDF sampling, any material, bounded or not.
+#[inline(never)]
+fn general_path<A: Accel, const BOUNDED: bool>(
+    ctx: &RenderContext<A>,
+    pixel: UVec2,
+    rng: &mut SampleStream,
+    scratch: &mut Scratch,
+    rr_depth: u32,
+    mis: Mis,
+) -> Vec3A {
+    trace_path::<A, false, BOUNDED>(ctx, pixel, rng, scratch, rr_depth, mis, sample_bsdf)
 }
 
 /// The path tracer's loop, with the choice of direction left to `sample_direction` (given the
@@ -104,9 +120,10 @@ impl Integrator for PathTracer {
 ///
 /// `NEE_ONLY` promises that no vertex weighs BSDF-found emission (`mis` off there) and that
 /// nothing is delta or seen beyond the scene, so that only NEE counts light past the first hit;
-/// the loop then skips those checks.
+/// the loop then skips those checks. `BOUNDED`: paths end at `ctx.max_depth` segments (without
+/// it, `ctx.max_depth` must be unbounded).
 #[inline(always)]
-pub(crate) fn trace_path<A: Accel, const NEE_ONLY: bool>(
+pub(crate) fn trace_path<A: Accel, const NEE_ONLY: bool, const BOUNDED: bool>(
     ctx: &RenderContext<A>,
     pixel: UVec2,
     rng: &mut SampleStream,
@@ -119,7 +136,7 @@ pub(crate) fn trace_path<A: Accel, const NEE_ONLY: bool>(
     let ray = ctx.scene.camera.ray(film);
     scratch.rays += 1;
     // Paths of at most `max_depth` segments: the camera's is the first.
-    if ctx.max_depth == 0 {
+    if BOUNDED && ctx.max_depth == 0 {
         return Vec3A::ZERO;
     }
     let Some(hit) = ctx.accel.intersect(&ray) else {
@@ -128,12 +145,16 @@ pub(crate) fn trace_path<A: Accel, const NEE_ONLY: bool>(
     let mut si = ctx.scene.interaction(&ray, &hit);
     let mut radiance = si.emitted();
     let mut throughput = Vec3A::ONE;
+    // Light reaching a vertex (by NEE or by the next direction) ends a path of `bounce + 2`
+    // segments: the last vertex that scatters.
+    let last_bounce = ctx.max_depth.saturating_sub(2);
+    if BOUNDED && ctx.max_depth < 2 {
+        return radiance;
+    }
     let mut bounce = 0;
     loop {
         let albedo = si.material.albedo();
-        // Light reaching this vertex (by NEE or by the next direction) ends a path of
-        // `bounce + 2` segments.
-        if albedo == Vec3A::ZERO || bounce + 2 > ctx.max_depth {
+        if albedo == Vec3A::ZERO || (BOUNDED && bounce > last_bounce) {
             break;
         }
         let frame = si.bsdf_frame();

@@ -88,27 +88,31 @@ impl RoughCoat {
     }
 }
 
-/// The directional albedo of a rough dielectric interface's reflection for incidence `wi`, as
-/// Mitsuba 3 tabulates it: over visible normals `m`, the mean of `F(wi·m)·G1(wo, m)` (its
-/// uncorrelated masking), by a midpoint rule of 64 × 64 over the sampling's square.
-fn rough_reflectance(ggx: Ggx, eta: f32, wi: Vec3A) -> f64 {
+/// The mean of `w(m)` over GGX's normals visible from `wi`, by a midpoint rule of 64 × 64 over
+/// the visible-normal sampling's square (non-finite values count 0).
+fn visible_mean(ggx: Ggx, wi: Vec3A, w: impl Fn(Vec3A) -> f32) -> f64 {
     const N: usize = 64;
     let mut sum = 0.0f64;
     for a in 0..N {
         for b in 0..N {
             let u = Vec2::new((a as f32 + 0.5) / N as f32, (b as f32 + 0.5) / N as f32);
-            let m = ggx.sample_visible(wi, u);
-            let wo = reflect(wi, m);
-            let c = wi.dot(m);
-            if wo.z > 0.0 && c > 0.0 {
-                let w = fresnel::dielectric(c, eta).0 * ggx.g1(wo, m);
-                if w.is_finite() {
-                    sum += f64::from(w);
-                }
+            let v = w(ggx.sample_visible(wi, u));
+            if v.is_finite() {
+                sum += f64::from(v);
             }
         }
     }
     sum / (N * N) as f64
+}
+
+/// The directional albedo of a rough dielectric interface's reflection for incidence `wi`, as
+/// Mitsuba 3 tabulates it: over visible normals `m`, the mean of `F(wi·m)·G1(wo, m)` (its
+/// uncorrelated masking).
+fn rough_reflectance(ggx: Ggx, eta: f32, wi: Vec3A) -> f64 {
+    visible_mean(ggx, wi, |m| {
+        let (wo, c) = (reflect(wi, m), wi.dot(m));
+        if wo.z > 0.0 && c > 0.0 { fresnel::dielectric(c, eta).0 * ggx.g1(wo, m) } else { 0.0 }
+    })
 }
 
 /// The share of light from `wi` that a rough dielectric interface lets through, as Mitsuba 3
@@ -118,30 +122,15 @@ fn rough_reflectance(ggx: Ggx, eta: f32, wi: Vec3A) -> f64 {
 /// masking, is 13% higher at `cos θ = 0.1` for `α = 0.15`, `η = 1.5`: Mitsuba's images differed
 /// by that much.)
 fn rough_transmittance(ggx: Ggx, eta: f32, wi: Vec3A) -> f64 {
-    const N: usize = 64;
-    let mut sum = 0.0f64;
-    for a in 0..N {
-        for b in 0..N {
-            let u = Vec2::new((a as f32 + 0.5) / N as f32, (b as f32 + 0.5) / N as f32);
-            let m = ggx.sample_visible(wi, u);
-            let c = wi.dot(m);
-            if c <= 0.0 {
-                continue;
-            }
-            let (f, cos_t, eta_it) = fresnel::dielectric(c, eta);
-            if f >= 1.0 {
-                continue;
-            }
-            let wt = refract(wi, m, eta_it, c, cos_t);
-            if wt.z < 0.0 {
-                let w = (1.0 - f) * ggx.g1(wt, m);
-                if w.is_finite() {
-                    sum += f64::from(w);
-                }
-            }
+    visible_mean(ggx, wi, |m| {
+        let c = wi.dot(m);
+        if c <= 0.0 {
+            return 0.0;
         }
-    }
-    sum / (N * N) as f64
+        let (f, cos_t, eta_it) = fresnel::dielectric(c, eta);
+        let wt = refract(wi, m, eta_it, c, cos_t);
+        if f < 1.0 && wt.z < 0.0 { (1.0 - f) * ggx.g1(wt, m) } else { 0.0 }
+    })
 }
 
 /// A rough coat's table and internal diffuse reflectance, as Mitsuba 3 computes them: `T` at

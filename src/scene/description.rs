@@ -220,6 +220,24 @@ pub struct TextureDescription {
     pub v_from_top: Option<bool>,
 }
 
+impl TextureDescription {
+    /// A texture of one colour (a checkerboard of two equal colours: importers' fallback).
+    #[must_use]
+    pub fn constant(c: [f32; 3]) -> Self {
+        Self {
+            kind: TextureKind::Checkerboard,
+            file: None,
+            wrap: None,
+            filter: None,
+            raw: None,
+            color0: Some(c),
+            color1: Some(c),
+            scale: None,
+            v_from_top: None,
+        }
+    }
+}
+
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MeshDescription {

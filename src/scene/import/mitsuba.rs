@@ -14,10 +14,10 @@ use super::super::description::{
     MaterialKind, MeshDescription, RenderDescription, RotateDescription, SceneDescription, ShapeDescription, ShapeKind,
     TextureDescription, TextureKind, WrapDescription,
 };
-use super::ImportOptions;
+use super::{At, ImportOptions, Imported, empty_description, syntax, to_rows, unsupported};
 use crate::error::{Error, Result};
 use glam::{DMat4, DVec3, DVec4};
-use std::collections::{BTreeMap, HashMap};
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
 
@@ -31,19 +31,6 @@ const MAX_INCLUDES: usize = 1024;
 /// Deepest nesting of elements (roxmltree's own limit is far deeper; a recursive walk must
 /// not overflow the stack on a hostile file).
 const MAX_ELEMENT_DEPTH: usize = 64;
-
-/// Where an element stands: file and line.
-#[derive(Clone, Debug)]
-struct At {
-    file: Rc<PathBuf>,
-    line: u32,
-}
-
-impl std::fmt::Display for At {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}:{}", self.file.display(), self.line)
-    }
-}
 
 /// A parameter's value, parsed where it was written.
 #[derive(Clone, Debug)]
@@ -101,13 +88,6 @@ struct Reader<'o> {
     files: Vec<PathBuf>,
 }
 
-/// What the importer produced.
-pub(crate) struct Imported {
-    pub description: SceneDescription,
-    pub warnings: Vec<String>,
-    pub sources: Vec<PathBuf>,
-}
-
 /// Reads the Mitsuba 3 scene at `path`.
 pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result<Imported> {
     let mut reader = Reader {
@@ -118,47 +98,26 @@ pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result
         files: vec![path.to_path_buf()],
     };
     let root = reader.read_document(path, text)?;
-    let mut t = Translator { reader: &mut reader, ids: HashMap::new(), out: empty_description(), count: 0 };
+    let camera = CameraDescription {
+        eye: [0.0; 3],
+        look_at: [0.0, 0.0, 1.0],
+        up: [0.0, 1.0, 0.0],
+        fov_y: 45.0,
+        width: 768,
+        height: 576,
+        crop: None,
+        mirror: false,
+    };
+    let mut t = Translator { reader: &mut reader, ids: HashMap::new(), out: empty_description(camera), count: 0 };
     t.translate(&root)?;
     let description = t.out;
     Ok(Imported { description, warnings: reader.warnings, sources: reader.files })
 }
 
-fn empty_description() -> SceneDescription {
-    SceneDescription {
-        camera: CameraDescription {
-            eye: [0.0; 3],
-            look_at: [0.0, 0.0, 1.0],
-            up: [0.0, 1.0, 0.0],
-            fov_y: 45.0,
-            width: 768,
-            height: 576,
-            crop: None,
-            mirror: false,
-        },
-        materials: BTreeMap::new(),
-        textures: BTreeMap::new(),
-        meshes: Vec::new(),
-        shapes: Vec::new(),
-        lights: Vec::new(),
-        environment: None,
-        render: None,
-        inline_meshes: Vec::new(),
-    }
-}
-
-fn syntax(at: &At, message: impl Into<String>) -> Error {
-    Error::SceneSyntax { path: at.file.to_path_buf(), message: format!("line {}: {}", at.line, message.into()) }
-}
-
 impl Reader<'_> {
     /// A warning, or with `--strict` the error it would be.
     fn unsupported(&mut self, at: &At, message: String) -> Result<()> {
-        if self.options.strict {
-            return Err(syntax(at, format!("{message} (--strict)")));
-        }
-        self.warnings.push(format!("{at}: {message}"));
-        Ok(())
+        unsupported(self.options.strict, &mut self.warnings, at, message)
     }
 
     /// Parses the document at `path` (text `text`) into its root `<scene>` object.
@@ -746,17 +705,7 @@ impl Translator<'_, '_> {
             }
             other => {
                 self.unsupported(&t.at, format!("<texture type=\"{other}\"> is not supported: grey 0.5 used"))?;
-                TextureDescription {
-                    kind: TextureKind::Checkerboard,
-                    file: None,
-                    wrap: None,
-                    filter: None,
-                    raw: None,
-                    color0: Some([0.5; 3]),
-                    color1: Some([0.5; 3]),
-                    scale: None,
-                    v_from_top: None,
-                }
+                TextureDescription::constant([0.5; 3])
             }
         };
         self.out.textures.insert(name.clone(), description);
@@ -1311,12 +1260,6 @@ impl Translator<'_, '_> {
         };
         Ok(())
     }
-}
-
-/// A 4×4 matrix as rows.
-fn to_rows(m: DMat4) -> [[f32; 4]; 4] {
-    let t = m.transpose();
-    [t.x_axis, t.y_axis, t.z_axis, t.w_axis].map(|r| r.as_vec4().to_array())
 }
 
 #[cfg(test)]

@@ -3,6 +3,68 @@
 pub(crate) mod mitsuba;
 pub(crate) mod pbrt;
 
+use super::description::{CameraDescription, SceneDescription};
+use crate::error::{Error, Result};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::rc::Rc;
+
+/// Where an element or directive stands: file and line.
+#[derive(Clone, Debug)]
+pub(crate) struct At {
+    pub file: Rc<PathBuf>,
+    pub line: u32,
+}
+
+impl std::fmt::Display for At {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}:{}", self.file.display(), self.line)
+    }
+}
+
+/// A malformed file: one error naming file and line.
+pub(crate) fn syntax(at: &At, message: impl Into<String>) -> Error {
+    Error::SceneSyntax { path: at.file.to_path_buf(), message: format!("line {}: {}", at.line, message.into()) }
+}
+
+/// Something outside the supported subset: a warning naming file and line (and the fallback
+/// the message gives), or with `strict` the error it would be.
+pub(crate) fn unsupported(strict: bool, warnings: &mut Vec<String>, at: &At, message: String) -> Result<()> {
+    if strict {
+        return Err(syntax(at, format!("{message} (--strict)")));
+    }
+    warnings.push(format!("{at}: {message}"));
+    Ok(())
+}
+
+/// What an importer produced: the description, its warnings and the files it read.
+pub(crate) struct Imported {
+    pub description: SceneDescription,
+    pub warnings: Vec<String>,
+    pub sources: Vec<PathBuf>,
+}
+
+/// A description with only a camera, to fill.
+pub(crate) fn empty_description(camera: CameraDescription) -> SceneDescription {
+    SceneDescription {
+        camera,
+        materials: BTreeMap::new(),
+        textures: BTreeMap::new(),
+        meshes: Vec::new(),
+        shapes: Vec::new(),
+        lights: Vec::new(),
+        environment: None,
+        render: None,
+        inline_meshes: Vec::new(),
+    }
+}
+
+/// A 4×4 matrix as rows (the description's `matrix`).
+pub(crate) fn to_rows(m: glam::DMat4) -> [[f32; 4]; 4] {
+    let t = m.transpose();
+    [t.x_axis, t.y_axis, t.z_axis, t.w_axis].map(|r| r.as_vec4().to_array())
+}
+
 /// How foreign scene files are read.
 #[derive(Clone, Debug, Default)]
 pub struct ImportOptions {

@@ -14,10 +14,10 @@ use super::super::description::{
     MaterialDescription, MaterialKind, MeshDescription, RenderDescription, SceneDescription, ShapeDescription,
     ShapeKind, TextureDescription, TextureKind, WrapDescription,
 };
-use super::ImportOptions;
-use crate::error::{Error, Result};
+use super::{At, ImportOptions, Imported, empty_description, syntax, to_rows, unsupported};
+use crate::error::Result;
 use glam::{DMat4, DVec3, DVec4};
-use std::collections::{BTreeMap, HashMap};
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
 
@@ -30,22 +30,6 @@ const MAX_INCLUDES: usize = 1024;
 const MAX_ATTRIBUTE_DEPTH: usize = 4096;
 /// Most values in one parameter (a mesh's vertices, say), against hostile files: 2^28.
 const MAX_VALUES: usize = 1 << 28;
-
-#[derive(Clone, Debug)]
-struct At {
-    file: Rc<PathBuf>,
-    line: u32,
-}
-
-impl std::fmt::Display for At {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}:{}", self.file.display(), self.line)
-    }
-}
-
-fn syntax(at: &At, message: impl Into<String>) -> Error {
-    Error::SceneSyntax { path: at.file.to_path_buf(), message: format!("line {}: {}", at.line, message.into()) }
-}
 
 #[derive(Clone, Debug, PartialEq)]
 enum Token {
@@ -266,37 +250,20 @@ struct Parser<'o> {
     camera: Option<(DMat4, f64, At)>,
 }
 
-/// What the importer produced.
-pub(crate) struct Imported {
-    pub description: SceneDescription,
-    pub warnings: Vec<String>,
-    pub sources: Vec<PathBuf>,
-}
-
 /// Reads the pbrt-v4 scene at `path` (text `text`).
 pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result<Imported> {
     let folder = path.parent().unwrap_or(Path::new(".")).to_path_buf();
     let folder = std::path::absolute(&folder).unwrap_or(folder);
-    let mut out = SceneDescription {
-        camera: CameraDescription {
-            eye: [0.0; 3],
-            look_at: [0.0, 0.0, 1.0],
-            up: [0.0, 1.0, 0.0],
-            fov_y: 90.0,
-            width: 1280,
-            height: 720,
-            crop: None,
-            mirror: false,
-        },
-        materials: BTreeMap::new(),
-        textures: BTreeMap::new(),
-        meshes: Vec::new(),
-        shapes: Vec::new(),
-        lights: Vec::new(),
-        environment: None,
-        render: None,
-        inline_meshes: Vec::new(),
-    };
+    let mut out = empty_description(CameraDescription {
+        eye: [0.0; 3],
+        look_at: [0.0, 0.0, 1.0],
+        up: [0.0, 1.0, 0.0],
+        fov_y: 90.0,
+        width: 1280,
+        height: 720,
+        crop: None,
+        mirror: false,
+    });
     // pbrt's default material: diffuse, reflectance 0.5.
     out.materials.insert("default".into(), MaterialDescription { diffuse: [0.5; 3], ..MaterialDescription::default() });
     let mut p = Parser {
@@ -490,12 +457,6 @@ fn look_at(eye: DVec3, target: DVec3, up: DVec3) -> Option<DMat4> {
     Some(DMat4::from_cols(right.extend(0.0), new_up.extend(0.0), dir.extend(0.0), eye.extend(1.0)).inverse())
 }
 
-/// A 4×4 matrix as rows.
-fn to_rows(m: DMat4) -> [[f32; 4]; 4] {
-    let t = m.transpose();
-    [t.x_axis, t.y_axis, t.z_axis, t.w_axis].map(|r| r.as_vec4().to_array())
-}
-
 /// Named spectra of pbrt-v4's glasses, as indices of refraction (their value near 550 nm).
 fn glass_ior(name: &str) -> Option<f32> {
     Some(match name {
@@ -513,11 +474,7 @@ fn glass_ior(name: &str) -> Option<f32> {
 
 impl Parser<'_> {
     fn unsupported(&mut self, at: &At, message: String) -> Result<()> {
-        if self.options.strict {
-            return Err(syntax(at, format!("{message} (--strict)")));
-        }
-        self.warnings.push(format!("{at}: {message}"));
-        Ok(())
+        unsupported(self.options.strict, &mut self.warnings, at, message)
     }
 
     fn check_unused(&mut self, what: &str, params: &Params, at: &At) -> Result<()> {
@@ -1152,17 +1109,7 @@ impl Parser<'_> {
                 match a {
                     Colour::Constant(c) => {
                         let c = c.map(|v| v * s);
-                        TextureDescription {
-                            kind: TextureKind::Checkerboard,
-                            file: None,
-                            wrap: None,
-                            filter: None,
-                            raw: None,
-                            color0: Some(c),
-                            color1: Some(c),
-                            scale: None,
-                            v_from_top: None,
-                        }
+                        TextureDescription::constant(c)
                     }
                     Colour::Texture(t) => {
                         if s != 1.0 {
@@ -1182,17 +1129,7 @@ impl Parser<'_> {
                 for p in &params.list {
                     p.used.set(true);
                 }
-                TextureDescription {
-                    kind: TextureKind::Checkerboard,
-                    file: None,
-                    wrap: None,
-                    filter: None,
-                    raw: None,
-                    color0: Some([0.5; 3]),
-                    color1: Some([0.5; 3]),
-                    scale: None,
-                    v_from_top: None,
-                }
+                TextureDescription::constant([0.5; 3])
             }
         };
         self.check_unused(&format!("Texture \"{kind}\""), params, at)?;

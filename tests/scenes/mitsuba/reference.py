@@ -2,6 +2,7 @@
 
     pip install mitsuba OpenEXR numpy
     python3 reference.py box.xml 4096 16 box-mitsuba.exr
+    python3 reference.py box.xml 1024 16 box-mitsuba-depth3.exr max_depth=3
 
 renders the scene `seeds` times at `spp` samples per pixel (scalar_rgb variant, seeds
 0..seeds-1), and writes the mean image (R, G, B) with the variance of that mean per pixel
@@ -18,7 +19,8 @@ import OpenEXR
 
 mi.set_variant("scalar_rgb")
 path, spp, seeds, out = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
-scene = mi.load_file(path)
+# Further arguments NAME=VALUE are the scene's parameters (Mitsuba's -D).
+scene = mi.load_file(path, **dict(a.split("=", 1) for a in sys.argv[5:]))
 start = time.time()
 images = np.stack([np.array(mi.render(scene, spp=spp, seed=s))[:, :, :3] for s in range(seeds)])
 mean = images.mean(0)
