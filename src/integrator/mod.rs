@@ -231,7 +231,8 @@ pub fn direct_light<A: Accel>(
         return Vec3A::ZERO;
     }
     let value = f * light.emission * (cos * light.inv_pdf);
-    let weigh = if light.infinite { mis.environment } else { mis.surfaces && !light.delta };
+    // Delta lights (point, spot, distant) cannot be found by BSDF sampling: never weighed.
+    let weigh = !light.delta && if light.infinite { mis.environment } else { mis.surfaces };
     if !weigh {
         return value;
     }

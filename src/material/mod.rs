@@ -10,6 +10,7 @@
 //!
 //! A scene's [`crate::scene::Material`] holds one; the integrators build the local frame at
 //! each hit ([`crate::scene::SurfaceInteraction::bsdf_frame`]).
+pub mod cie;
 pub mod conductors;
 pub mod fresnel;
 pub mod microfacet;

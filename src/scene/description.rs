@@ -60,6 +60,7 @@ pub struct RenderDescription {
 pub enum LightKind {
     Point,
     Spot,
+    Distant,
 }
 
 /// A point light, or a spot light (`direction`, `cutoff` and `beam` in degrees: Mitsuba 3's
@@ -69,9 +70,13 @@ pub enum LightKind {
 pub struct LightDescription {
     #[serde(rename = "type")]
     pub kind: LightKind,
-    pub position: [f32; 3],
-    pub intensity: [f32; 3],
+    /// Point and spot lights.
+    pub position: Option<[f32; 3]>,
+    pub intensity: Option<[f32; 3]>,
+    /// Spot lights: the axis; distant lights: the direction the light travels in.
     pub direction: Option<[f32; 3]>,
+    /// Distant lights: the irradiance on a surface facing the light.
+    pub irradiance: Option<[f32; 3]>,
     pub cutoff: Option<f32>,
     pub beam: Option<f32>,
 }

@@ -539,26 +539,45 @@ fn lights_from(path: &Path, d: &SceneDescription) -> Result<(Lights, Vec<PathBuf
             Error::InvalidOption(m) => invalid(path, format!("light {}: {m}", k + 1)),
             other => other,
         };
-        let (position, intensity) = (vec3(l.position), vec3(l.intensity));
-        let light = match l.kind {
+        let need = |key: &str, v: Option<[f32; 3]>| {
+            v.map(vec3).ok_or_else(|| invalid(path, format!("light {}: a {:?} light needs `{key}`", k + 1, l.kind)))
+        };
+        let forbid = |keys: &[(&str, bool)]| match keys.iter().find(|(_, given)| *given) {
+            Some((key, _)) => Err(invalid(path, format!("light {}: `{key}` is not for {:?} lights", k + 1, l.kind))),
+            None => Ok(()),
+        };
+        match l.kind {
             LightKind::Point => {
-                if l.direction.is_some() || l.cutoff.is_some() || l.beam.is_some() {
-                    return Err(invalid(
-                        path,
-                        format!("light {}: `direction`, `cutoff` and `beam` are for spot lights", k + 1),
-                    ));
-                }
-                PointLight::point(position, intensity)
+                forbid(&[
+                    ("direction", l.direction.is_some()),
+                    ("cutoff", l.cutoff.is_some()),
+                    ("beam", l.beam.is_some()),
+                    ("irradiance", l.irradiance.is_some()),
+                ])?;
+                let light = PointLight::point(need("position", l.position)?, need("intensity", l.intensity)?);
+                lights.points.push(light.map_err(err)?);
             }
             LightKind::Spot => {
-                let direction = l
-                    .direction
-                    .ok_or_else(|| invalid(path, format!("light {}: a spot light needs `direction`", k + 1)))?;
-                PointLight::spot(position, vec3(direction), intensity, l.cutoff.unwrap_or(20.0), l.beam)
+                forbid(&[("irradiance", l.irradiance.is_some())])?;
+                let (position, intensity) = (need("position", l.position)?, need("intensity", l.intensity)?);
+                let direction = need("direction", l.direction)?;
+                let light = PointLight::spot(position, direction, intensity, l.cutoff.unwrap_or(20.0), l.beam);
+                lights.points.push(light.map_err(err)?);
+            }
+            LightKind::Distant => {
+                forbid(&[
+                    ("position", l.position.is_some()),
+                    ("intensity", l.intensity.is_some()),
+                    ("cutoff", l.cutoff.is_some()),
+                    ("beam", l.beam.is_some()),
+                ])?;
+                let (direction, irradiance) = (need("direction", l.direction)?, need("irradiance", l.irradiance)?);
+                if irradiance.max_element() > MAX_EMISSION {
+                    return Err(invalid(path, format!("light {}: irradiance must be at most {MAX_EMISSION:e}", k + 1)));
+                }
+                lights.distant.push(crate::light::DistantLight::new(direction, irradiance).map_err(err)?);
             }
         }
-        .map_err(err)?;
-        lights.points.push(light);
     }
     if let Some(e) = &d.environment {
         let scale = e.scale.unwrap_or(1.0);

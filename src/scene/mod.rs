@@ -195,6 +195,7 @@ impl EmitterPlane {
 #[derive(Clone, Debug, Default)]
 pub struct Lights {
     pub points: Vec<PointLight>,
+    pub distant: Vec<crate::light::DistantLight>,
     pub environment: Option<Environment>,
 }
 
@@ -203,6 +204,7 @@ pub struct Lights {
 enum Group {
     Triangles,
     Point(usize),
+    Distant(usize),
     Environment,
 }
 
@@ -396,6 +398,10 @@ impl Scene {
         // environment as seen by a disc of the bounding sphere (π r² ∫ L dω, pbrt's measure).
         let mut group_power = vec![power.iter().sum::<f32>()];
         group_power.extend(lights.points.iter().map(|l| luminance(l.power()).max(1e-6 * l.power().max_element())));
+        group_power.extend(lights.distant.iter().map(|l| {
+            let p = l.power_through(bounds.1);
+            luminance(p).max(1e-6 * p.max_element())
+        }));
         if let Some(env) = &lights.environment {
             group_power.push(PI * bounds.1 * bounds.1 * env.luminous_integral());
         }
@@ -535,6 +541,9 @@ impl Scene {
         match g {
             0 => Group::Triangles,
             g if g <= self.lights.points.len() => Group::Point(g - 1),
+            g if g <= self.lights.points.len() + self.lights.distant.len() => {
+                Group::Distant(g - 1 - self.lights.points.len())
+            }
             _ => Group::Environment,
         }
     }
@@ -572,7 +581,9 @@ impl Scene {
                 self.material_of(self.emitters.prims[i]).emission * (sides * PI * self.emitters.areas[i])
             })
             .sum();
-        surfaces + self.lights.points.iter().map(PointLight::power).sum::<Vec3A>()
+        surfaces
+            + self.lights.points.iter().map(PointLight::power).sum::<Vec3A>()
+            + self.lights.distant.iter().map(|l| l.power_through(self.bounds.1)).sum::<Vec3A>()
     }
 
     /// The shading record for `hit` along `ray`.
@@ -667,6 +678,10 @@ impl Scene {
                 let e = self.lights.points[k].emit(u_dir);
                 Some((Ray::new(e.origin, e.direction), e.weight / group_pmf))
             }
+            Group::Distant(k) => {
+                let (origin, dir, flux) = self.lights.distant[k].emit(self.bounds.0, self.bounds.1, u_point);
+                Some((Ray::new(origin, dir), flux / group_pmf))
+            }
             Group::Environment => {
                 let env = self.lights.environment.as_ref()?;
                 let s = env.sample(u_dir)?;
@@ -712,6 +727,20 @@ impl Scene {
                     p: self.lights.points[k].position,
                     p_err: Vec3A::ZERO,
                     ng: -l.direction,
+                    emission: l.irradiance,
+                    inv_pdf: 1.0 / group_pmf,
+                });
+            }
+            Group::Distant(k) => {
+                let l = &self.lights.distant[k];
+                // As an infinite light: `p` is the direction towards it.
+                return Some(DirectSample {
+                    prim: u32::MAX,
+                    delta: true,
+                    infinite: true,
+                    p: -l.direction,
+                    p_err: Vec3A::ZERO,
+                    ng: l.direction,
                     emission: l.irradiance,
                     inv_pdf: 1.0 / group_pmf,
                 });
@@ -1276,6 +1305,9 @@ mod tests {
                 PointLight::point(Vec3A::new(0.3, 0.5, 0.2), Vec3A::new(2.0, 1.0, 0.5)).unwrap(),
                 PointLight::spot(Vec3A::new(-0.5, 0.9, 0.0), Vec3A::NEG_Y, Vec3A::ONE, 30.0, None).unwrap(),
             ],
+            distant: vec![
+                crate::light::DistantLight::new(Vec3A::new(0.2, -1.0, 0.1), Vec3A::new(0.5, 0.4, 0.3)).unwrap(),
+            ],
             environment: Some(Environment::from_texels(8, 4, texels).unwrap()),
         };
         let mut materials = s.materials.clone();
@@ -1298,12 +1330,12 @@ mod tests {
     /// With several kinds of light, NEE's density for every sampled environment direction and
     /// every sampled point on an emitting triangle (two-sided now, seen from below) is the one
     /// `environment_pdf` and `emitter_pdf` give, within 0.5% (all but 0.1% of 20k samples);
-    /// point lights are chosen with their share of the power.
+    /// point and distant lights are chosen with their share of the power.
     #[test]
     fn nee_densities_with_every_kind_of_light() {
         let scene = lit_box();
         let groups = scene.groups.as_ref().unwrap();
-        assert_eq!(groups.len(), 4);
+        assert_eq!(groups.len(), 5);
         for (x, n) in [(Vec3A::new(0.1, 0.0, 0.1), Vec3A::Y), (Vec3A::new(0.1, 0.999, 0.1), Vec3A::NEG_Y)] {
             let mut rng = SampleStream::new(1, 2, 3);
             let (mut count, mut bad, mut points) = (0, 0, 0);
@@ -1311,7 +1343,11 @@ mod tests {
                 let (u, v) = (rng.next_f32(), rng.next_2d());
                 let Some(s) = scene.sample_emitter_from(x, n, LightSampling::SolidAngle, u, v) else { continue };
                 let expected = 1.0 / s.inv_pdf;
-                let pdf = if s.delta {
+                let pdf = if s.delta && s.infinite {
+                    points += 1;
+                    assert_eq!(s.p, -scene.lights.distant[0].direction, "towards the distant light");
+                    groups.pmf(3)
+                } else if s.delta {
                     points += 1;
                     let k = (0..2).find(|&k| scene.lights.points[k].position == s.p).unwrap();
                     groups.pmf(1 + k)
@@ -1331,8 +1367,9 @@ mod tests {
     }
 
     /// Photons carry each light's power: the mean flux of photon paths from `emit_photon` is the
-    /// emitted power of the surfaces (both sides) and point lights plus the environment's flux
-    /// through the bounding sphere's disc, `π r² ∫L dω`, per channel within 5 standard errors.
+    /// emitted power of the surfaces (both sides) and point lights, plus the distant light's and
+    /// the environment's flux through the bounding sphere's disc (`E π r²`, `π r² ∫L dω`), per
+    /// channel within 5 standard errors.
     #[test]
     fn photons_carry_the_power_of_every_light() {
         let scene = lit_box();

@@ -134,7 +134,7 @@ impl Reader<'_> {
         }
         let mut scene =
             Obj { tag: "scene".into(), plugin: String::new(), id: None, at, params: Vec::new(), children: Vec::new() };
-        self.read_children(&doc, root, &file, &mut scene, 0)?;
+        self.read_children(&doc, root, &file, &mut scene, 0, false)?;
         Ok(scene)
     }
 
@@ -196,6 +196,7 @@ impl Reader<'_> {
         file: &Rc<PathBuf>,
         obj: &mut Obj,
         depth: usize,
+        in_emitter: bool,
     ) -> Result<()> {
         for child in node.children().filter(roxmltree::Node::is_element) {
             let at = self.at(doc, child, file);
@@ -235,7 +236,7 @@ impl Reader<'_> {
                 }
                 "float" | "integer" | "boolean" | "string" | "rgb" | "spectrum" | "point" | "vector" => {
                     let name = self.required(child, "name", &at)?;
-                    let value = self.value(child, tag, &at)?;
+                    let value = self.value(child, tag, &at, in_emitter)?;
                     obj.params.push((name, value, at));
                 }
                 "transform" => {
@@ -255,7 +256,7 @@ impl Reader<'_> {
                         params: Vec::new(),
                         children: Vec::new(),
                     };
-                    self.read_children(doc, child, file, &mut nested, depth + 1)?;
+                    self.read_children(doc, child, file, &mut nested, depth + 1, in_emitter || tag == "emitter")?;
                     match self.attr(child, "name", &at)? {
                         Some(name) => obj.params.push((name, Value::Object(Box::new(nested)), at)),
                         None => obj.children.push(Child::Obj(nested)),
@@ -267,8 +268,10 @@ impl Reader<'_> {
         Ok(())
     }
 
-    /// A `<float>`, `<rgb>`, … element's value.
-    fn value(&mut self, node: roxmltree::Node, tag: &str, at: &At) -> Result<Value> {
+    /// A `<float>`, `<rgb>`, … element's value. A sampled `<spectrum>` becomes linear sRGB as
+    /// Mitsuba 3 computes it in RGB mode: as a radiance inside an emitter, else as a
+    /// reflectance under D65 (clamped to [0, 1]).
+    fn value(&mut self, node: roxmltree::Node, tag: &str, at: &At, in_emitter: bool) -> Result<Value> {
         let text = || self.required(node, "value", at);
         let number = |s: &str| -> Result<f64> {
             let v: f64 = s.trim().parse().map_err(|_| syntax(at, format!("<{tag}>: \"{s}\" is not a number")))?;
@@ -304,23 +307,17 @@ impl Reader<'_> {
                 }
                 let s = text()?;
                 if s.contains(':') {
-                    // Wavelength:value pairs: their mean (no spectral-to-RGB conversion).
-                    let mut values = Vec::new();
+                    let mut points = Vec::new();
                     for pair in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
-                        let (_, v) = pair
+                        let (l, v) = pair
                             .split_once(':')
                             .ok_or_else(|| syntax(at, format!("<spectrum>: \"{pair}\" is not λ:value")))?;
-                        values.push(number(v)?);
+                        points.push((number(l)?, number(v)?));
                     }
-                    if values.is_empty() {
-                        return Err(syntax(at, "<spectrum> has no values"));
-                    }
-                    self.unsupported(
-                        at,
-                        "a sampled <spectrum> is reduced to the mean of its values (grey), not converted to RGB".into(),
-                    )?;
-                    let mean = values.iter().sum::<f64>() / values.len() as f64;
-                    Value::Colour([mean as f32; 3])
+                    let rgb = crate::material::cie::spectrum_to_rgb(&points, in_emitter).ok_or_else(|| {
+                        syntax(at, "<spectrum> needs two or more λ:value pairs with increasing wavelengths")
+                    })?;
+                    Value::Colour(if in_emitter { rgb.map(|c| c.max(0.0)) } else { rgb.map(|c| c.clamp(0.0, 1.0)) })
                 } else {
                     let v = numbers(&s).map_err(|m| syntax(at, format!("<spectrum>: {m}")))?;
                     match v[..] {
@@ -1017,8 +1014,9 @@ impl Translator<'_, '_> {
                 };
                 self.out.lights.push(LightDescription {
                     kind: LightKind::Point,
-                    position: position.as_vec3().to_array(),
-                    intensity,
+                    position: Some(position.as_vec3().to_array()),
+                    intensity: Some(intensity),
+                    irradiance: None,
                     direction: None,
                     cutoff: None,
                     beam: None,
@@ -1033,8 +1031,9 @@ impl Translator<'_, '_> {
                 let direction = to_world.transform_vector3(DVec3::Z);
                 self.out.lights.push(LightDescription {
                     kind: LightKind::Spot,
-                    position: position.as_vec3().to_array(),
-                    intensity,
+                    position: Some(position.as_vec3().to_array()),
+                    intensity: Some(intensity),
+                    irradiance: None,
                     direction: Some(direction.as_vec3().to_array()),
                     cutoff: Some(cutoff),
                     beam: Some(beam),
@@ -1068,6 +1067,24 @@ impl Translator<'_, '_> {
                     matrix: (rotation != DMat4::IDENTITY).then(|| to_rows(rotation)),
                 };
                 self.environment(e, env)?;
+            }
+            "directional" => {
+                self.check_params(e, &["irradiance", "direction", "to_world"])?;
+                let irradiance = self.constant_colour(e, "irradiance", [1.0; 3])?;
+                let direction = match e.param("direction") {
+                    Some((_, Value::Vector(d), _)) => *d,
+                    Some((_, _, at)) => return Err(syntax(at, "`direction` must be a <vector>")),
+                    None => to_world.transform_vector3(DVec3::Z),
+                };
+                self.out.lights.push(LightDescription {
+                    kind: LightKind::Distant,
+                    position: None,
+                    intensity: None,
+                    direction: Some(direction.as_vec3().to_array()),
+                    irradiance: Some(irradiance),
+                    cutoff: None,
+                    beam: None,
+                });
             }
             "area" => self.unsupported(&e.at, "an area emitter outside a shape lights nothing: ignored".into())?,
             other => self.unsupported(&e.at, format!("<emitter type=\"{other}\"> is not supported: ignored"))?,
@@ -1394,7 +1411,7 @@ mod tests {
         assert!(r.warnings[0].contains("beckmann") && r.warnings[0].contains("GGX"), "{:?}", r.warnings);
         let e = message(read(body, &[], true));
         assert!(e.contains("line 3") && e.contains("hair") && e.contains("--strict"), "{e}");
-        let r = read("<shape type=\"serialized\"/><emitter type=\"directional\"/>", &[], false).unwrap();
+        let r = read("<shape type=\"serialized\"/><emitter type=\"projector\"/>", &[], false).unwrap();
         assert_eq!(r.warnings.len(), 2);
     }
 
@@ -1441,17 +1458,23 @@ mod tests {
             <emitter type=\"spot\"><transform name=\"to_world\"><lookat origin=\"0, 4, 0\" target=\"0, 0, 0\" up=\"0, 0, 1\"/></transform>
                 <float name=\"cutoff_angle\" value=\"30\"/></emitter>
             <emitter type=\"constant\"><spectrum name=\"radiance\" value=\"0.5\"/></emitter>
+            <emitter type=\"directional\"><vector name=\"direction\" value=\"0, -2, 0\"/><rgb name=\"irradiance\" value=\"2\"/></emitter>
             <integrator type=\"path\"><integer name=\"max_depth\" value=\"4\"/></integrator>
             <sensor type=\"perspective\"><sampler type=\"independent\"><integer name=\"sample_count\" value=\"9\"/></sampler></sensor>");
         assert_eq!(d.materials[&d.shapes[0].material].emission, [3.0; 3]);
-        assert_eq!((d.lights[0].position, d.lights[0].intensity), ([1.0, 2.0, 3.0], [5.0; 3]));
+        assert_eq!((d.lights[0].position, d.lights[0].intensity), (Some([1.0, 2.0, 3.0]), Some([5.0; 3])));
         let spot = &d.lights[1];
         assert_eq!(
             (spot.kind, spot.position, spot.cutoff, spot.beam),
-            (LightKind::Spot, [0.0, 4.0, 0.0], Some(30.0), Some(22.5))
+            (LightKind::Spot, Some([0.0, 4.0, 0.0]), Some(30.0), Some(22.5))
         );
         assert!((spot.direction.unwrap()[1] + 1.0).abs() < 1e-6);
         assert_eq!(d.environment.as_ref().unwrap().radiance, Some([0.5; 3]));
+        let sun = &d.lights[2];
+        assert_eq!(
+            (sun.kind, sun.direction, sun.irradiance),
+            (LightKind::Distant, Some([0.0, -2.0, 0.0]), Some([2.0; 3]))
+        );
         let r = d.render.unwrap();
         assert_eq!((r.spp, r.max_depth), (Some(9), Some(4)));
     }

@@ -854,10 +854,22 @@ impl Parser<'_> {
             }
             ("float", Values::Numbers(v)) if v.len() == 1 => Ok(Colour::Constant([v[0] as f32; 3])),
             ("spectrum", Values::Numbers(v)) if v.len() == 1 => Ok(Colour::Constant([v[0] as f32; 3])),
-            ("spectrum", Values::Numbers(v)) if v.len() >= 2 && v.len() % 2 == 0 => {
-                let mean = v.chunks(2).map(|p| p[1]).sum::<f64>() / (v.len() / 2) as f64;
-                self.unsupported(at, format!("\"spectrum {name}\": λ/value pairs become their mean (grey)"))?;
-                Ok(Colour::Constant([mean as f32; 3]))
+            ("spectrum", Values::Numbers(v)) if v.len() >= 4 && v.len() % 2 == 0 => {
+                // λ/value pairs. A light's spectrum is normalised to luminance 1 (pbrt-v4
+                // scales it by 1/∫Lȳ, then by "scale"); a reflectance is taken under D65.
+                let points: Vec<(f64, f64)> = v.chunks(2).map(|p| (p[0], p[1])).collect();
+                let emission = matches!(name, "L" | "I");
+                let rgb = crate::material::cie::spectrum_to_rgb(&points, emission)
+                    .ok_or_else(|| syntax(at, format!("\"spectrum {name}\": wavelengths must increase")))?;
+                if emission {
+                    let y = f64::from(crate::geometry::luminance(glam::Vec3A::from_array(rgb)));
+                    if y.is_nan() || y <= 0.0 {
+                        return Err(syntax(at, format!("\"spectrum {name}\" has no luminance")));
+                    }
+                    Ok(Colour::Constant(rgb.map(|c| (f64::from(c) / y).max(0.0) as f32)))
+                } else {
+                    Ok(Colour::Constant(rgb.map(|c| c.clamp(0.0, 1.0))))
+                }
             }
             ("blackbody", Values::Numbers(_)) => {
                 self.unsupported(at, format!("\"blackbody {name}\" is not converted: white used"))?;
@@ -1345,8 +1357,9 @@ impl Parser<'_> {
                 let from = ctm.transform_point3(params.point("from", DVec3::ZERO, at)?);
                 self.out.lights.push(LightDescription {
                     kind: LightKind::Point,
-                    position: from.as_vec3().to_array(),
-                    intensity,
+                    position: Some(from.as_vec3().to_array()),
+                    intensity: Some(intensity),
+                    irradiance: None,
                     direction: None,
                     cutoff: None,
                     beam: None,
@@ -1361,11 +1374,28 @@ impl Parser<'_> {
                 let (p, q) = (ctm.transform_point3(from), ctm.transform_point3(to));
                 self.out.lights.push(LightDescription {
                     kind: LightKind::Spot,
-                    position: p.as_vec3().to_array(),
-                    intensity,
+                    position: Some(p.as_vec3().to_array()),
+                    intensity: Some(intensity),
+                    irradiance: None,
                     direction: Some((q - p).as_vec3().to_array()),
                     cutoff: Some(cone as f32),
                     beam: Some((cone - delta).max(0.0) as f32),
+                });
+            }
+            "distant" => {
+                let irradiance = constant(self, "L", 1.0)?;
+                let from = params.point("from", DVec3::ZERO, at)?;
+                let to = params.point("to", DVec3::Z, at)?;
+                let direction = ctm.transform_point3(to) - ctm.transform_point3(from);
+                params.get("illuminance");
+                self.out.lights.push(LightDescription {
+                    kind: LightKind::Distant,
+                    position: None,
+                    intensity: None,
+                    direction: Some(direction.as_vec3().to_array()),
+                    irradiance: Some(irradiance),
+                    cutoff: None,
+                    beam: None,
                 });
             }
             "infinite" => {
@@ -1518,12 +1548,39 @@ mod tests {
     }
 
     #[test]
+    fn lights() {
+        let d = ok("WorldBegin
+            Translate 0 1 0
+            LightSource \"point\" \"rgb I\" [ 1 2 3 ] \"float scale\" 2
+            LightSource \"spot\" \"point3 from\" [ 0 0 0 ] \"point3 to\" [ 0 -1 0 ] \"float coneangle\" 40 \"float conedelta\" 10
+            LightSource \"distant\" \"point3 from\" [ 0 1 0 ] \"point3 to\" [ 0 0 0 ] \"rgb L\" [ 3 3 3 ]
+            LightSource \"infinite\" \"spectrum L\" [ 400 1 700 1 ]");
+        let l = &d.lights;
+        assert_eq!(
+            (l[0].kind, l[0].position, l[0].intensity),
+            (LightKind::Point, Some([0.0, 1.0, 0.0]), Some([2.0, 4.0, 6.0]))
+        );
+        assert_eq!(
+            (l[1].kind, l[1].direction, l[1].cutoff, l[1].beam),
+            (LightKind::Spot, Some([0.0, -1.0, 0.0]), Some(40.0), Some(30.0))
+        );
+        assert_eq!(
+            (l[2].kind, l[2].direction, l[2].irradiance),
+            (LightKind::Distant, Some([0.0, -1.0, 0.0]), Some([3.0; 3]))
+        );
+        // A light's spectrum is normalised to luminance 1.
+        let env = d.environment.unwrap().radiance.unwrap();
+        let y = 0.2126 * env[0] + 0.7152 * env[1] + 0.0722 * env[2];
+        assert!((y - 1.0).abs() < 1e-4, "{env:?}");
+    }
+
+    #[test]
     fn unsupported_warns_or_fails() {
-        let text = "WorldBegin\nShape \"sphere\" \"float zmax\" 0.5\nLightSource \"distant\" \"rgb L\" [1 1 1]\nMaterial \"hair\"\nShape \"curve\"\n";
+        let text = "WorldBegin\nShape \"sphere\" \"float zmax\" 0.5\nLightSource \"goniometric\" \"rgb I\" [1 1 1]\nMaterial \"hair\"\nShape \"curve\"\n";
         let r = read(text, false).unwrap();
         assert_eq!(r.warnings.len(), 4, "{:?}", r.warnings);
         assert!(r.warnings[0].starts_with("/nowhere/scene.pbrt:2:") && r.warnings[0].contains("partial"));
-        assert!(r.warnings[1].contains("distant") && r.warnings[2].contains("grey diffuse"));
+        assert!(r.warnings[1].contains("goniometric") && r.warnings[2].contains("grey diffuse"));
         let e = message(read(text, true));
         assert!(e.contains("line 2") && e.contains("--strict"), "{e}");
         let r = read("WorldBegin Shape \"sphere\" \"float radius\" 2 \"float nonsense\" 3", false).unwrap();
