@@ -81,6 +81,40 @@ pub struct LightDescription {
     pub beam: Option<f32>,
 }
 
+impl LightDescription {
+    /// A point light (importers).
+    #[must_use]
+    pub fn point(position: [f32; 3], intensity: [f32; 3]) -> Self {
+        Self::with(LightKind::Point, Some(position), Some(intensity), None, None)
+    }
+
+    /// A spot light along `direction`, `cutoff` and `beam` in degrees (importers).
+    #[must_use]
+    pub fn spot(position: [f32; 3], intensity: [f32; 3], direction: [f32; 3], cutoff: f32, beam: f32) -> Self {
+        Self {
+            cutoff: Some(cutoff),
+            beam: Some(beam),
+            ..Self::with(LightKind::Spot, Some(position), Some(intensity), Some(direction), None)
+        }
+    }
+
+    /// A distant light travelling along `direction` (importers).
+    #[must_use]
+    pub fn distant(direction: [f32; 3], irradiance: [f32; 3]) -> Self {
+        Self::with(LightKind::Distant, None, None, Some(direction), Some(irradiance))
+    }
+
+    fn with(
+        kind: LightKind,
+        position: Option<[f32; 3]>,
+        intensity: Option<[f32; 3]>,
+        direction: Option<[f32; 3]>,
+        irradiance: Option<[f32; 3]>,
+    ) -> Self {
+        Self { kind, position, intensity, direction, irradiance, cutoff: None, beam: None }
+    }
+}
+
 /// Light from infinitely far away: a constant `radiance`, or an equirectangular `map` (EXR
 /// linear or PNG sRGB, relative to the scene file; +y up) times `scale`.
 #[derive(Debug, Deserialize)]

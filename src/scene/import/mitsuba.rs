@@ -10,8 +10,8 @@
 //! What lies outside the subset gives one warning naming the element, its file and line, and
 //! what is used instead (`strict`: an error).
 use super::super::description::{
-    CameraDescription, EnvironmentDescription, FilterDescription, LightDescription, LightKind, MaterialDescription,
-    MaterialKind, MeshDescription, RenderDescription, RotateDescription, SceneDescription, ShapeDescription, ShapeKind,
+    CameraDescription, EnvironmentDescription, FilterDescription, LightDescription, MaterialDescription, MaterialKind,
+    MeshDescription, RenderDescription, RotateDescription, SceneDescription, ShapeDescription, ShapeKind,
     TextureDescription, TextureKind, WrapDescription,
 };
 use super::{At, ImportOptions, Imported, empty_description, syntax, to_rows, unsupported};
@@ -1012,15 +1012,7 @@ impl Translator<'_, '_> {
                     Some((_, _, at)) => return Err(syntax(at, "`position` must be a <point>")),
                     None => to_world.transform_point3(DVec3::ZERO),
                 };
-                self.out.lights.push(LightDescription {
-                    kind: LightKind::Point,
-                    position: Some(position.as_vec3().to_array()),
-                    intensity: Some(intensity),
-                    irradiance: None,
-                    direction: None,
-                    cutoff: None,
-                    beam: None,
-                });
+                self.out.lights.push(LightDescription::point(position.as_vec3().to_array(), intensity));
             }
             "spot" => {
                 self.check_params(e, &["intensity", "cutoff_angle", "beam_width", "to_world"])?;
@@ -1029,15 +1021,13 @@ impl Translator<'_, '_> {
                 let beam = self.float(e, "beam_width", f64::from(cutoff) * 0.75)? as f32;
                 let position = to_world.transform_point3(DVec3::ZERO);
                 let direction = to_world.transform_vector3(DVec3::Z);
-                self.out.lights.push(LightDescription {
-                    kind: LightKind::Spot,
-                    position: Some(position.as_vec3().to_array()),
-                    intensity: Some(intensity),
-                    irradiance: None,
-                    direction: Some(direction.as_vec3().to_array()),
-                    cutoff: Some(cutoff),
-                    beam: Some(beam),
-                });
+                self.out.lights.push(LightDescription::spot(
+                    position.as_vec3().to_array(),
+                    intensity,
+                    direction.as_vec3().to_array(),
+                    cutoff,
+                    beam,
+                ));
             }
             "constant" => {
                 self.check_params(e, &["radiance"])?;
@@ -1076,15 +1066,7 @@ impl Translator<'_, '_> {
                     Some((_, _, at)) => return Err(syntax(at, "`direction` must be a <vector>")),
                     None => to_world.transform_vector3(DVec3::Z),
                 };
-                self.out.lights.push(LightDescription {
-                    kind: LightKind::Distant,
-                    position: None,
-                    intensity: None,
-                    direction: Some(direction.as_vec3().to_array()),
-                    irradiance: Some(irradiance),
-                    cutoff: None,
-                    beam: None,
-                });
+                self.out.lights.push(LightDescription::distant(direction.as_vec3().to_array(), irradiance));
             }
             "area" => self.unsupported(&e.at, "an area emitter outside a shape lights nothing: ignored".into())?,
             other => self.unsupported(&e.at, format!("<emitter type=\"{other}\"> is not supported: ignored"))?,
@@ -1282,6 +1264,7 @@ impl Translator<'_, '_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::description::LightKind;
 
     fn read(body: &str, defines: &[(&str, &str)], strict: bool) -> Result<Imported> {
         let text = format!("<scene version=\"3.0.0\">\n{body}\n</scene>\n");

@@ -10,7 +10,7 @@
 //! Outside the subset: one warning naming the directive, its file and line, and the fallback
 //! (`strict`: an error).
 use super::super::description::{
-    CameraDescription, EnvironmentDescription, FilterDescription, InlineMesh, LightDescription, LightKind, MapLayout,
+    CameraDescription, EnvironmentDescription, FilterDescription, InlineMesh, LightDescription, MapLayout,
     MaterialDescription, MaterialKind, MeshDescription, RenderDescription, SceneDescription, ShapeDescription,
     ShapeKind, TextureDescription, TextureKind, WrapDescription,
 };
@@ -1355,15 +1355,7 @@ impl Parser<'_> {
             "point" => {
                 let intensity = constant(self, "I", 1.0)?;
                 let from = ctm.transform_point3(params.point("from", DVec3::ZERO, at)?);
-                self.out.lights.push(LightDescription {
-                    kind: LightKind::Point,
-                    position: Some(from.as_vec3().to_array()),
-                    intensity: Some(intensity),
-                    irradiance: None,
-                    direction: None,
-                    cutoff: None,
-                    beam: None,
-                });
+                self.out.lights.push(LightDescription::point(from.as_vec3().to_array(), intensity));
             }
             "spot" => {
                 let intensity = constant(self, "I", 1.0)?;
@@ -1372,15 +1364,13 @@ impl Parser<'_> {
                 let cone = params.float("coneangle", 30.0, at)?;
                 let delta = params.float("conedelta", 5.0, at)?;
                 let (p, q) = (ctm.transform_point3(from), ctm.transform_point3(to));
-                self.out.lights.push(LightDescription {
-                    kind: LightKind::Spot,
-                    position: Some(p.as_vec3().to_array()),
-                    intensity: Some(intensity),
-                    irradiance: None,
-                    direction: Some((q - p).as_vec3().to_array()),
-                    cutoff: Some(cone as f32),
-                    beam: Some((cone - delta).max(0.0) as f32),
-                });
+                self.out.lights.push(LightDescription::spot(
+                    p.as_vec3().to_array(),
+                    intensity,
+                    (q - p).as_vec3().to_array(),
+                    cone as f32,
+                    (cone - delta).max(0.0) as f32,
+                ));
             }
             "distant" => {
                 let irradiance = constant(self, "L", 1.0)?;
@@ -1388,15 +1378,7 @@ impl Parser<'_> {
                 let to = params.point("to", DVec3::Z, at)?;
                 let direction = ctm.transform_point3(to) - ctm.transform_point3(from);
                 params.get("illuminance");
-                self.out.lights.push(LightDescription {
-                    kind: LightKind::Distant,
-                    position: None,
-                    intensity: None,
-                    direction: Some(direction.as_vec3().to_array()),
-                    irradiance: Some(irradiance),
-                    cutoff: None,
-                    beam: None,
-                });
+                self.out.lights.push(LightDescription::distant(direction.as_vec3().to_array(), irradiance));
             }
             "infinite" => {
                 if self.out.environment.is_some() {
@@ -1439,6 +1421,7 @@ impl Parser<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::description::LightKind;
     use glam::Vec3A;
 
     fn read(text: &str, strict: bool) -> Result<Imported> {
