@@ -257,6 +257,9 @@ pub struct TextureDescription {
     pub scale: Option<[f32; 2]>,
     /// Bitmaps: `v = 0` is the image's top row (Mitsuba's convention), not its bottom.
     pub v_from_top: Option<bool>,
+    /// Map texture coordinates before reading: `u' = m[0]·(u, v, 1)`, `v' = m[1]·(u, v, 1)`
+    /// (Mitsuba's `to_uv`).
+    pub uv_transform: Option<[[f32; 3]; 2]>,
 }
 
 impl TextureDescription {
@@ -273,6 +276,7 @@ impl TextureDescription {
             color1: Some(c),
             scale: None,
             v_from_top: None,
+            uv_transform: None,
         }
     }
 }

@@ -248,13 +248,14 @@ fn texture_slots(
     Ok(TextureSlots { reflectance: diffuse.or(specular), roughness })
 }
 
-/// A scene's textures, their indices by name, and the files they were read from.
-type Textures = (Vec<Texture>, HashMap<String, u16>, Vec<PathBuf>);
+/// A scene's textures, their indices by name, the files they were read from, and their maps
+/// of texture coordinates (empty when none has one).
+type Textures = (Vec<Texture>, HashMap<String, u16>, Vec<PathBuf>, Vec<Option<glam::Affine2>>);
 
 /// The `[textures]` of a scene file, their indices by name, and the files they read.
 fn textures_from(path: &Path, d: &SceneDescription) -> Result<Textures> {
     use super::description::{FilterDescription, TextureKind, WrapDescription};
-    let (mut textures, mut ids, mut sources) = (Vec::new(), HashMap::new(), Vec::new());
+    let (mut textures, mut ids, mut sources, mut maps) = (Vec::new(), HashMap::new(), Vec::new(), Vec::new());
     if d.textures.len() > usize::from(u16::MAX) {
         return Err(invalid(path, format!("more than {} textures", u16::MAX)));
     }
@@ -320,10 +321,21 @@ fn textures_from(path: &Path, d: &SceneDescription) -> Result<Textures> {
                 Texture::Bitmap(bitmap)
             }
         };
+        let map = match t.uv_transform {
+            None => None,
+            Some(m) if m.iter().flatten().all(|x| x.is_finite()) => {
+                Some(glam::Affine2::from_cols_array(&[m[0][0], m[1][0], m[0][1], m[1][1], m[0][2], m[1][2]]))
+            }
+            Some(m) => return Err(err(format!("`uv_transform` must be finite, got {m:?}"))),
+        };
+        maps.push(map);
         ids.insert(name.clone(), textures.len() as u16);
         textures.push(texture);
     }
-    Ok((textures, ids, sources))
+    if maps.iter().all(Option::is_none) {
+        maps.clear();
+    }
+    Ok((textures, ids, sources, maps))
 }
 
 /// The scattering model a material description asks for; keys that do not apply to its type
@@ -417,7 +429,7 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
         })?;
     }
 
-    let (textures, texture_ids, texture_sources) = textures_from(path, &d)?;
+    let (textures, texture_ids, texture_sources, texture_uv) = textures_from(path, &d)?;
     let mut meshes = Meshes::default();
     for (name, m) in &d.materials {
         meshes.by_name.insert(name.clone(), meshes.materials.len() as u32);
@@ -518,6 +530,7 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
         Scene::from_parts(name, path.to_path_buf(), camera, triangles, triangle_material, materials, lights, warnings);
     scene.attributes = attributes;
     scene.textures = textures;
+    scene.texture_uv = texture_uv;
     if let Some(r) = d.render {
         if r.spp == Some(0) {
             return Err(invalid(path, "render: spp must be at least 1"));

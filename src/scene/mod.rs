@@ -131,6 +131,9 @@ pub struct Scene {
     pub attributes: Attributes,
     /// The textures materials read ([`Material::textures`]).
     pub textures: Vec<Texture>,
+    /// Per texture, a map of texture coordinates applied before it is read (Mitsuba's
+    /// `to_uv`); empty when no texture has one.
+    pub texture_uv: Vec<Option<glam::Affine2>>,
     emitters: Emitters,
     /// Point and spot lights, and the environment.
     pub lights: Lights,
@@ -420,6 +423,7 @@ impl Scene {
             materials,
             attributes: Attributes::default(),
             textures: Vec::new(),
+            texture_uv: Vec::new(),
             emitters,
             lights,
             groups,
@@ -482,6 +486,9 @@ impl Scene {
             };
             kind.bytes().for_each(|b| eat(u32::from(b)));
             values.iter().flat_map(|v| v.to_array()).for_each(|x| eat(x.to_bits()));
+        }
+        for m in self.texture_uv.iter().flatten() {
+            m.to_cols_array().iter().for_each(|x| eat(x.to_bits()));
         }
         for m in &self.materials {
             // Two-sided Lambertian materials hash as they always have (cached references
@@ -618,6 +625,16 @@ impl Scene {
         SurfaceInteraction { p, p_err: barycentric_error(b, v), ng, n, ns, shaded, wo, prim: hit.prim, material }
     }
 
+    /// Texture `i` at texture coordinates `uv` (mapped by its `texture_uv`, if any).
+    #[inline]
+    fn texture(&self, i: u16, uv: Vec2) -> Vec3A {
+        let i = usize::from(i);
+        match self.texture_uv.get(i).copied().flatten() {
+            Some(m) => self.textures[i].eval(m.transform_point2(uv)),
+            None => self.textures[i].eval(uv),
+        }
+    }
+
     /// Replaces the parameters of `material` its textures drive by their values at
     /// barycentric coordinates `b` of triangle `prim`.
     fn read_textures(&self, material: &mut Material, prim: usize, b: [f32; 3]) {
@@ -625,7 +642,7 @@ impl Scene {
         let uv = t[0] * b[0] + t[1] * b[1] + t[2] * b[2];
         let slots = material.textures;
         if let Some(i) = slots.reflectance {
-            let r = self.textures[i as usize].eval(uv).clamp(Vec3A::ZERO, Vec3A::ONE);
+            let r = self.texture(i, uv).clamp(Vec3A::ZERO, Vec3A::ONE);
             match &mut material.bsdf {
                 Bsdf::Diffuse { reflectance } => *reflectance = r,
                 Bsdf::Plastic { diffuse, .. } => *diffuse = r,
@@ -634,7 +651,7 @@ impl Scene {
             }
         }
         if let Some(i) = slots.roughness {
-            let alpha = luminance(self.textures[i as usize].eval(uv)).clamp(Ggx::MIN_ALPHA, 1.0);
+            let alpha = luminance(self.texture(i, uv)).clamp(Ggx::MIN_ALPHA, 1.0);
             let alpha = if alpha.is_nan() { 1.0 } else { alpha };
             match &mut material.bsdf {
                 Bsdf::Conductor { roughness, .. } | Bsdf::Dielectric { roughness, thin: false, .. } => {
@@ -1325,6 +1342,28 @@ mod tests {
             Vec::new(),
         );
         s
+    }
+
+    /// A texture's `uv_transform` maps coordinates before the lookup (Mitsuba's `to_uv`): a
+    /// checkerboard shifted by half a period swaps its colours.
+    #[test]
+    fn texture_coordinates_are_mapped() {
+        let text = |map: &str| {
+            format!(
+                "[camera]\neye = [0.0, 0.0, 3.0]\nlook_at = [0.0, 0.0, 0.0]\nfov_y = 40.0\nwidth = 4\nheight = 4\n\
+                 [textures.c]\ntype = \"checkerboard\"\ncolor0 = [1.0, 1.0, 1.0]\ncolor1 = [0.0, 0.0, 0.0]\n{map}\n\
+                 [materials.m]\ndiffuse_texture = \"c\"\n[[shape]]\ntype = \"rectangle\"\nmaterial = \"m\"\n"
+            )
+        };
+        let plain = Scene::parse(&text(""), std::path::Path::new("t.toml")).unwrap();
+        let shifted =
+            Scene::parse(&text("uv_transform = [[1.0, 0.0, 0.5], [0.0, 1.0, 0.0]]"), std::path::Path::new("t.toml"))
+                .unwrap();
+        let uv = Vec2::new(0.25, 0.25);
+        assert_eq!(plain.texture(0, uv), Vec3A::ONE);
+        assert_eq!(shifted.texture(0, uv), Vec3A::ZERO);
+        assert!(plain.texture_uv.is_empty());
+        assert_ne!(plain.content_hash(), shifted.content_hash());
     }
 
     /// With several kinds of light, NEE's density for every sampled environment direction and

@@ -447,6 +447,12 @@ fn resolve(from: &Path, name: &str) -> PathBuf {
     std::path::absolute(&path).unwrap_or(path)
 }
 
+/// A `to_uv` transform (read as 3D, applied to `(u, v, 0)`) as the rows of its 2D affine map.
+fn uv_rows(m: DMat4) -> [[f32; 3]; 2] {
+    let r = |k: usize| [m.col(0)[k] as f32, m.col(1)[k] as f32, m.col(3)[k] as f32];
+    [r(0), r(1)]
+}
+
 /// Named indices of refraction, as Mitsuba 3 lists them.
 fn named_ior(name: &str) -> Option<f32> {
     Some(match name {
@@ -658,9 +664,7 @@ impl Translator<'_, '_> {
                     Some("clamp") => WrapDescription::Clamp,
                     Some(other) => return Err(syntax(&t.at, format!("unknown wrap_mode \"{other}\""))),
                 };
-                if self.transform(t, "to_uv")? != DMat4::IDENTITY {
-                    self.unsupported(&t.at, "a bitmap's `to_uv` is not supported: identity used".into())?;
-                }
+                let to_uv = self.transform(t, "to_uv")?;
                 TextureDescription {
                     kind: TextureKind::Bitmap,
                     file: Some(path.to_string_lossy().into_owned()),
@@ -671,6 +675,7 @@ impl Translator<'_, '_> {
                     color1: None,
                     scale: None,
                     v_from_top: Some(true),
+                    uv_transform: (to_uv != DMat4::IDENTITY).then(|| uv_rows(to_uv)),
                 }
             }
             "checkerboard" => {
@@ -678,16 +683,15 @@ impl Translator<'_, '_> {
                 let c0 = self.constant_colour(t, "color0", [0.4; 3])?;
                 let c1 = self.constant_colour(t, "color1", [0.2; 3])?;
                 let m = self.transform(t, "to_uv")?;
-                // One period of Mitsuba's checkerboard spans [0, 1]: two squares; a `to_uv`
-                // scale multiplies them (a shear or rotation is not supported).
+                // One period of Mitsuba's checkerboard spans [0, 1]: two squares each way,
+                // after `to_uv` (a positive scale is folded into the squares' count).
                 let (sx, sy) = (m.x_axis.x, m.y_axis.y);
                 let pure_scale = m.x_axis.y == 0.0 && m.y_axis.x == 0.0 && m.w_axis.x == 0.0 && m.w_axis.y == 0.0;
-                if !pure_scale || sx <= 0.0 || sy <= 0.0 {
-                    self.unsupported(
-                        &t.at,
-                        "a checkerboard's `to_uv` other than a positive scale: its scale alone used".into(),
-                    )?;
-                }
+                let (scale, map) = if pure_scale && sx > 0.0 && sy > 0.0 {
+                    ([(2.0 * sx) as f32, (2.0 * sy) as f32], None)
+                } else {
+                    ([2.0, 2.0], Some(uv_rows(m)))
+                };
                 TextureDescription {
                     kind: TextureKind::Checkerboard,
                     file: None,
@@ -696,8 +700,9 @@ impl Translator<'_, '_> {
                     raw: None,
                     color0: Some(c0),
                     color1: Some(c1),
-                    scale: Some([(2.0 * sx.abs().max(1e-6)) as f32, (2.0 * sy.abs().max(1e-6)) as f32]),
+                    scale: Some(scale),
                     v_from_top: None,
+                    uv_transform: map,
                 }
             }
             other => {
@@ -1359,6 +1364,21 @@ mod tests {
         assert!((c.look_at[2] - 2.0).abs() < 1e-6 && c.up == [0.0, 1.0, 0.0] && !c.mirror);
         assert_eq!(c.crop, Some([10, 0, 20, 576]));
         assert!(sensor("<scale x=\"-1\"/>").mirror);
+    }
+
+    /// `to_uv` of a bitmap, and of a checkerboard beyond a scale, becomes `uv_transform`.
+    #[test]
+    fn texture_coordinate_maps() {
+        let d = ok("<shape type=\"rectangle\"><bsdf type=\"diffuse\"><texture type=\"bitmap\" name=\"reflectance\">
+                <string name=\"filename\" value=\"t.png\"/>
+                <transform name=\"to_uv\"><scale x=\"2\" y=\"3\"/><translate x=\"0.5\"/></transform></texture></bsdf></shape>
+            <shape type=\"rectangle\"><bsdf type=\"diffuse\"><texture type=\"checkerboard\" name=\"reflectance\">
+                <transform name=\"to_uv\"><rotate z=\"1\" angle=\"90\"/></transform></texture></bsdf></shape>");
+        let t: Vec<&TextureDescription> = d.textures.values().collect();
+        assert_eq!(t[0].uv_transform, Some([[2.0, 0.0, 0.5], [0.0, 3.0, 0.0]]));
+        let r = t[1].uv_transform.unwrap();
+        assert!((r[0][1] + 1.0).abs() < 1e-6 && (r[1][0] - 1.0).abs() < 1e-6, "{r:?}");
+        assert_eq!(t[1].scale, Some([2.0, 2.0]));
     }
 
     #[test]

@@ -1075,7 +1075,7 @@ impl Parser<'_> {
                 if params.float("scale", 1.0, at)? != 1.0 || params.boolean("invert", false, at)? {
                     self.unsupported(at, "an imagemap's scale and invert are not supported: ignored".into())?;
                 }
-                self.mapping(params, at)?;
+                let uv_transform = self.mapping(params, at)?;
                 params.get("maxanisotropy");
                 TextureDescription {
                     kind: TextureKind::Bitmap,
@@ -1087,6 +1087,7 @@ impl Parser<'_> {
                     color1: None,
                     scale: None,
                     v_from_top: None,
+                    uv_transform,
                 }
             }
             "checkerboard" => {
@@ -1112,6 +1113,7 @@ impl Parser<'_> {
                     color1: Some(c2),
                     scale: Some([us.abs().max(1e-6) as f32, vs.abs().max(1e-6) as f32]),
                     v_from_top: None,
+                    uv_transform: None,
                 }
             }
             "scale" | "constant" => {
@@ -1150,16 +1152,17 @@ impl Parser<'_> {
         Ok(())
     }
 
-    /// Texture-coordinate mappings other than pbrt's default `uv` with no scale or shift are
-    /// not supported.
-    fn mapping(&mut self, params: &Params, at: &At) -> Result<()> {
+    /// pbrt's `uv` mapping with its scale and shift (`s = su·u + du`, `t = sv·v + dv`), as a
+    /// map of texture coordinates; other mappings are not supported.
+    fn mapping(&mut self, params: &Params, at: &At) -> Result<Option<[[f32; 3]; 2]>> {
         let mapping = params.text("mapping", at)?;
         let (us, vs) = (params.float("uscale", 1.0, at)?, params.float("vscale", 1.0, at)?);
         let (ud, vd) = (params.float("udelta", 0.0, at)?, params.float("vdelta", 0.0, at)?);
-        if mapping.as_deref().is_some_and(|m| m != "uv") || (us, vs, ud, vd) != (1.0, 1.0, 0.0, 0.0) {
-            self.unsupported(at, "a texture mapping other than plain uv: plain uv used".into())?;
+        if mapping.as_deref().is_some_and(|m| m != "uv") {
+            self.unsupported(at, "a texture mapping other than uv (spherical, cylindrical, planar): uv used".into())?;
         }
-        Ok(())
+        Ok(((us, vs, ud, vd) != (1.0, 1.0, 0.0, 0.0))
+            .then_some([[us as f32, 0.0, ud as f32], [0.0, vs as f32, vd as f32]]))
     }
 
     /// The material a shape declared now gets: the current one, made emitting by the area
