@@ -560,8 +560,10 @@ impl Translator<'_, '_> {
         match sensor {
             Some(s) => self.sensor(s)?,
             None => {
-                // Mitsuba's default sensor: at the origin looking along +z, 45° (x), 768×576.
-                self.camera(DMat4::IDENTITY, 45.0, "x", 768, 576, &scene.at)?;
+                // Mitsuba's default sensor: at the origin looking along +z, 768×576, a 50 mm
+                // lens on 36×24 mm film (its field of view across the diagonal).
+                let fov = (36f64.hypot(24.0) / 100.0).atan().to_degrees() * 2.0;
+                self.camera(DMat4::IDENTITY, fov, "diagonal", 768, 576, &scene.at)?;
             }
         }
         Ok(())
@@ -1345,6 +1347,10 @@ mod tests {
         assert!((fov_y("larger", 400, 200) - deg(t / 2.0)).abs() < 1e-4);
         let d = ok(SHAPE);
         assert_eq!((d.camera.width, d.camera.height), (768, 576), "Mitsuba's default film");
+        // The default 50 mm lens: 46.8° across the 43.3 mm diagonal.
+        let diagonal = (36f64.hypot(24.0) / 100.0).atan();
+        let want = (2.0 * (diagonal.tan() * 576.0 / 768f64.hypot(576.0)).atan()).to_degrees();
+        assert!((f64::from(d.camera.fov_y) - want).abs() < 1e-4, "{} vs {want}", d.camera.fov_y);
     }
 
     /// `lookat` gives our camera as it is; a mirroring `to_world` sets `mirror`; a crop window.
