@@ -98,17 +98,7 @@ pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result
         files: vec![path.to_path_buf()],
     };
     let root = reader.read_document(path, text)?;
-    let camera = CameraDescription {
-        eye: [0.0; 3],
-        look_at: [0.0, 0.0, 1.0],
-        up: [0.0, 1.0, 0.0],
-        fov_y: 45.0,
-        width: 768,
-        height: 576,
-        crop: None,
-        mirror: false,
-    };
-    let mut t = Translator { reader: &mut reader, ids: HashMap::new(), out: empty_description(camera), count: 0 };
+    let mut t = Translator { reader: &mut reader, ids: HashMap::new(), out: empty_description(), count: 0 };
     t.translate(&root)?;
     let description = t.out;
     Ok(Imported { description, warnings: reader.warnings, sources: reader.files })

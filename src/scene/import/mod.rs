@@ -44,10 +44,20 @@ pub(crate) struct Imported {
     pub sources: Vec<PathBuf>,
 }
 
-/// A description with only a camera, to fill.
-pub(crate) fn empty_description(camera: CameraDescription) -> SceneDescription {
+/// An empty description to fill. Its camera is a placeholder: both importers always set the
+/// camera (from the sensor, or the format's default) before building.
+pub(crate) fn empty_description() -> SceneDescription {
     SceneDescription {
-        camera,
+        camera: CameraDescription {
+            eye: [0.0; 3],
+            look_at: [0.0, 0.0, 1.0],
+            up: [0.0, 1.0, 0.0],
+            fov_y: 45.0,
+            width: 1,
+            height: 1,
+            crop: None,
+            mirror: false,
+        },
         materials: BTreeMap::new(),
         textures: BTreeMap::new(),
         meshes: Vec::new(),

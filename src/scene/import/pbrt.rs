@@ -254,16 +254,7 @@ struct Parser<'o> {
 pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result<Imported> {
     let folder = path.parent().unwrap_or(Path::new(".")).to_path_buf();
     let folder = std::path::absolute(&folder).unwrap_or(folder);
-    let mut out = empty_description(CameraDescription {
-        eye: [0.0; 3],
-        look_at: [0.0, 0.0, 1.0],
-        up: [0.0, 1.0, 0.0],
-        fov_y: 90.0,
-        width: 1280,
-        height: 720,
-        crop: None,
-        mirror: false,
-    });
+    let mut out = empty_description();
     // pbrt's default material: diffuse, reflectance 0.5.
     out.materials.insert("default".into(), MaterialDescription { diffuse: [0.5; 3], ..MaterialDescription::default() });
     let mut p = Parser {
