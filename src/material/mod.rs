@@ -17,7 +17,7 @@ pub mod microfacet;
 pub mod texture;
 
 use crate::geometry::{Vec2, Vec3A};
-use microfacet::Ggx;
+use microfacet::Microfacet;
 use std::f32::consts::FRAC_1_PI;
 
 /// A sampled direction.
@@ -41,16 +41,16 @@ pub enum Bsdf {
     /// Lambertian reflection, `f = ρ/π`.
     Diffuse { reflectance: Vec3A },
     /// A metal: Fresnel reflectance of the complex index `eta + i·k`, times `specular`; a
-    /// mirror without roughness, GGX microfacets with it (visible-normal sampling, Smith
-    /// height-correlated masking).
-    Conductor { roughness: Option<Ggx>, eta: Vec3A, k: Vec3A, specular: Vec3A },
+    /// mirror without roughness, microfacets with it (GGX or Beckmann, visible-normal
+    /// sampling, Smith masking height-correlated or separable).
+    Conductor { roughness: Option<Microfacet>, eta: Vec3A, k: Vec3A, specular: Vec3A },
     /// Glass: reflection and refraction at an interface of relative index `eta` (inside over
     /// outside; +z is the outside), smooth or rough (Walter et al. 2007, sampled through
     /// visible normals, Fresnel choosing between the lobes). Radiance is scaled by `1/η²`
     /// crossing into a medium of relative index `η`, as Mitsuba 3 does in radiance mode.
     /// `thin`: a smooth thin sheet, both surfaces at once (inter-reflections summed; light
     /// passes straight through, unscaled).
-    Dielectric { eta: f32, roughness: Option<Ggx>, thin: bool },
+    Dielectric { eta: f32, roughness: Option<Microfacet>, thin: bool },
     /// Smooth plastic (Mitsuba's `plastic`): a diffuse base of reflectance `diffuse` under a
     /// smooth dielectric coat of index `eta`. The coat reflects `F(θi)` as a mirror (a delta
     /// lobe); the rest enters, scatters diffusely with inter-reflections under the coat
@@ -60,7 +60,7 @@ pub enum Bsdf {
     /// Fresnel weighting.
     ///
     /// With a `coat`, rough plastic (Mitsuba's `roughplastic`): the coat reflects as a rough
-    /// dielectric interface (GGX), and the base's light enters and leaves through the coat's
+    /// dielectric interface (microfacets), and the base's light enters and leaves through the coat's
     /// tabulated transmittance `T(θ) = 1 − R(θ)` instead of `1 − F(θ)`, `fdr_int` being the
     /// rough interface's internal reflectance of diffuse light.
     Plastic { eta: f32, fdr_int: f32, specular_share: f32, nonlinear: bool, coat: Option<RoughCoat>, diffuse: Vec3A },
@@ -73,7 +73,7 @@ pub const COAT_TABLE: usize = 64;
 /// incidence, `T(cos θ)` tabulated at `COAT_TABLE` equally spaced cosines.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RoughCoat {
-    pub ggx: Ggx,
+    pub mf: Microfacet,
     pub transmittance: &'static [f32; COAT_TABLE],
 }
 
@@ -89,15 +89,15 @@ impl RoughCoat {
     }
 }
 
-/// The mean of `w(m)` over GGX's normals visible from `wi`, by a midpoint rule of 64 × 64 over
+/// The mean of `w(m)` over the normals visible from `wi`, by a midpoint rule of 64 × 64 over
 /// the visible-normal sampling's square (non-finite values count 0).
-fn visible_mean(ggx: Ggx, wi: Vec3A, w: impl Fn(Vec3A) -> f32) -> f64 {
+fn visible_mean(mf: Microfacet, wi: Vec3A, w: impl Fn(Vec3A) -> f32) -> f64 {
     const N: usize = 64;
     let mut sum = 0.0f64;
     for a in 0..N {
         for b in 0..N {
             let u = Vec2::new((a as f32 + 0.5) / N as f32, (b as f32 + 0.5) / N as f32);
-            let v = w(ggx.sample_visible(wi, u));
+            let v = w(mf.sample_visible(wi, u));
             if v.is_finite() {
                 sum += f64::from(v);
             }
@@ -109,10 +109,10 @@ fn visible_mean(ggx: Ggx, wi: Vec3A, w: impl Fn(Vec3A) -> f32) -> f64 {
 /// The directional albedo of a rough dielectric interface's reflection for incidence `wi`, as
 /// Mitsuba 3 tabulates it: over visible normals `m`, the mean of `F(wi·m)·G1(wo, m)` (its
 /// uncorrelated masking).
-fn rough_reflectance(ggx: Ggx, eta: f32, wi: Vec3A) -> f64 {
-    visible_mean(ggx, wi, |m| {
+fn rough_reflectance(mf: Microfacet, eta: f32, wi: Vec3A) -> f64 {
+    visible_mean(mf, wi, |m| {
         let (wo, c) = (reflect(wi, m), wi.dot(m));
-        if wo.z > 0.0 && c > 0.0 { fresnel::dielectric(c, eta).0 * ggx.g1(wo, m) } else { 0.0 }
+        if wo.z > 0.0 && c > 0.0 { fresnel::dielectric(c, eta).0 * mf.g1(wo, m) } else { 0.0 }
     })
 }
 
@@ -122,15 +122,15 @@ fn rough_reflectance(ggx: Ggx, eta: f32, wi: Vec3A) -> f64 {
 /// refracted light the microsurface masks does not reach the base. (`1 − R`, which ignores that
 /// masking, is 13% higher at `cos θ = 0.1` for `α = 0.15`, `η = 1.5`: Mitsuba's images differed
 /// by that much.)
-fn rough_transmittance(ggx: Ggx, eta: f32, wi: Vec3A) -> f64 {
-    visible_mean(ggx, wi, |m| {
+fn rough_transmittance(mf: Microfacet, eta: f32, wi: Vec3A) -> f64 {
+    visible_mean(mf, wi, |m| {
         let c = wi.dot(m);
         if c <= 0.0 {
             return 0.0;
         }
         let (f, cos_t, eta_it) = fresnel::dielectric(c, eta);
         let wt = refract(wi, m, eta_it, c, cos_t);
-        if f < 1.0 && wt.z < 0.0 { (1.0 - f) * ggx.g1(wt, m) } else { 0.0 }
+        if f < 1.0 && wt.z < 0.0 { (1.0 - f) * mf.g1(wt, m) } else { 0.0 }
     })
 }
 
@@ -138,13 +138,14 @@ fn rough_transmittance(ggx: Ggx, eta: f32, wi: Vec3A) -> f64 {
 /// cosines `max(1e-6, i/63)`, and `2·mean(R_inside(μ)·μ)` over the same cosines with the
 /// relative index inverted. Each (α, η) is computed once per process and kept (a table is
 /// 256 bytes; a scene's materials hold references to it, so the BSDF stays `Copy`).
-fn rough_coat(alpha: f32, eta: f32) -> (RoughCoat, f32) {
+fn rough_coat(mf: Microfacet, eta: f32) -> (RoughCoat, f32) {
+    use microfacet::Distribution;
     use std::collections::HashMap;
     use std::sync::{Mutex, OnceLock};
-    type Tables = HashMap<(u32, u32), (&'static [f32; COAT_TABLE], f32)>;
+    type Tables = HashMap<(Distribution, u32, u32), (&'static [f32; COAT_TABLE], f32)>;
     static TABLES: OnceLock<Mutex<Tables>> = OnceLock::new();
-    let ggx = Ggx::new(alpha);
-    let key = (ggx.alpha.to_bits(), eta.to_bits());
+    // The table depends on the distribution, not on how masking and shadowing combine.
+    let key = (mf.distribution, mf.alpha.to_bits(), eta.to_bits());
     let mut tables = TABLES.get_or_init(Mutex::default).lock().unwrap_or_else(std::sync::PoisonError::into_inner);
     let (table, fdr) = *tables.entry(key).or_insert_with(|| {
         let mut table = [0.0f32; COAT_TABLE];
@@ -152,12 +153,12 @@ fn rough_coat(alpha: f32, eta: f32) -> (RoughCoat, f32) {
         for (i, t) in table.iter_mut().enumerate() {
             let mu = (i as f32 / (COAT_TABLE - 1) as f32).max(1e-6);
             let wi = Vec3A::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
-            *t = rough_transmittance(ggx, eta, wi) as f32;
-            inside += rough_reflectance(ggx, 1.0 / eta, wi) * f64::from(mu);
+            *t = rough_transmittance(mf, eta, wi) as f32;
+            inside += rough_reflectance(mf, 1.0 / eta, wi) * f64::from(mu);
         }
         (&*Box::leak(Box::new(table)), (2.0 * inside / COAT_TABLE as f64) as f32)
     });
-    (RoughCoat { ggx, transmittance: table }, fdr)
+    (RoughCoat { mf, transmittance: table }, fdr)
 }
 
 /// Diffuse Fresnel reflectance: `2 ∫₀¹ F(μ, eta) μ dμ`, the share of uniformly diffuse light
@@ -180,18 +181,18 @@ fn reflect(w: Vec3A, m: Vec3A) -> Vec3A {
 }
 
 impl Bsdf {
-    /// A conductor of roughness `alpha` (smooth below [`Ggx::MIN_ALPHA`]).
+    /// A conductor with microfacets `rough` (smooth below [`Microfacet::MIN_ALPHA`]).
     #[must_use]
-    pub fn conductor(eta: Vec3A, k: Vec3A, alpha: f32) -> Self {
-        let roughness = (alpha >= Ggx::MIN_ALPHA).then(|| Ggx::new(alpha));
+    pub fn conductor(eta: Vec3A, k: Vec3A, rough: Microfacet) -> Self {
+        let roughness = (rough.alpha >= Microfacet::MIN_ALPHA).then_some(rough);
         Bsdf::Conductor { eta, k, specular: Vec3A::ONE, roughness }
     }
 
-    /// Glass of relative index `eta` and roughness `alpha` (smooth below
-    /// [`Ggx::MIN_ALPHA`]).
+    /// Glass of relative index `eta` with microfacets `rough` (smooth below
+    /// [`Microfacet::MIN_ALPHA`]).
     #[must_use]
-    pub fn dielectric(eta: f32, alpha: f32) -> Self {
-        let roughness = (alpha >= Ggx::MIN_ALPHA).then(|| Ggx::new(alpha));
+    pub fn dielectric(eta: f32, rough: Microfacet) -> Self {
+        let roughness = (rough.alpha >= Microfacet::MIN_ALPHA).then_some(rough);
         Bsdf::Dielectric { eta, roughness, thin: false }
     }
 
@@ -199,18 +200,18 @@ impl Bsdf {
     /// `eta` 1.49, linear).
     #[must_use]
     pub fn plastic(reflectance: Vec3A, eta: f32, nonlinear: bool) -> Self {
-        Self::plastic_with(reflectance, eta, 0.0, nonlinear)
+        Self::plastic_with(reflectance, eta, Microfacet::ggx(0.0), nonlinear)
     }
 
-    /// Plastic with a coat of roughness `alpha`: smooth below [`Ggx::MIN_ALPHA`], else
-    /// Mitsuba's `roughplastic` (GGX).
+    /// Plastic with a coat of microfacets `rough`: smooth below [`Microfacet::MIN_ALPHA`],
+    /// else Mitsuba's `roughplastic`.
     #[must_use]
-    pub fn plastic_with(reflectance: Vec3A, eta: f32, alpha: f32, nonlinear: bool) -> Self {
+    pub fn plastic_with(reflectance: Vec3A, eta: f32, rough: Microfacet, nonlinear: bool) -> Self {
         // Mitsuba's choice: the mirror's share by the mean of the specular reflectance (1)
         // against the diffuse one.
         let mean = (reflectance.x + reflectance.y + reflectance.z) / 3.0;
-        let (coat, fdr_int) = if alpha >= Ggx::MIN_ALPHA {
-            let (coat, fdr) = rough_coat(alpha, eta);
+        let (coat, fdr_int) = if rough.alpha >= Microfacet::MIN_ALPHA {
+            let (coat, fdr) = rough_coat(rough, eta);
             (Some(coat), fdr)
         } else {
             (None, diffuse_fresnel(1.0 / eta))
@@ -268,9 +269,9 @@ impl Bsdf {
         if h == Vec3A::ZERO || cos <= 0.0 {
             return (0.0, 0.0);
         }
-        let ggx = coat.ggx;
-        let f = fresnel::dielectric(wi.dot(h), eta).0 * ggx.d(h) * ggx.g(wi, wo, h) / (4.0 * wi.z * wo.z);
-        (f, ggx.visible_pdf(wi, h) / (4.0 * cos))
+        let mf = coat.mf;
+        let f = fresnel::dielectric(wi.dot(h), eta).0 * mf.d(h) * mf.g(wi, wo, h) / (4.0 * wi.z * wo.z);
+        (f, mf.visible_pdf(wi, h) / (4.0 * cos))
     }
 
     /// A stand-in for the share of light scattered, per channel, for decisions that only
@@ -316,7 +317,7 @@ impl Bsdf {
     pub fn eval(&self, wi: Vec3A, wo: Vec3A) -> Vec3A {
         if let Bsdf::Dielectric { eta, roughness, thin } = *self {
             return match roughness {
-                Some(ggx) if !thin => Vec3A::splat(rough_dielectric(ggx, eta, wi, wo).0),
+                Some(mf) if !thin => Vec3A::splat(rough_dielectric(mf, eta, wi, wo).0),
                 _ => Vec3A::ZERO,
             };
         }
@@ -334,13 +335,13 @@ impl Bsdf {
             }
             Bsdf::Diffuse { reflectance } => reflectance * FRAC_1_PI,
             Bsdf::Conductor { roughness: None, .. } => Vec3A::ZERO,
-            Bsdf::Conductor { eta, k, specular, roughness: Some(ggx) } => {
+            Bsdf::Conductor { eta, k, specular, roughness: Some(mf) } => {
                 let h = (wi + wo).normalize_or_zero();
                 if h == Vec3A::ZERO {
                     return Vec3A::ZERO;
                 }
                 let f = fresnel::conductor(wi.dot(h), eta, k) * specular;
-                f * (ggx.d(h) * ggx.g(wi, wo, h) / (4.0 * wi.z * wo.z))
+                f * (mf.d(h) * mf.g(wi, wo, h) / (4.0 * wi.z * wo.z))
             }
         }
     }
@@ -350,7 +351,7 @@ impl Bsdf {
     pub fn pdf(&self, wi: Vec3A, wo: Vec3A) -> f32 {
         if let Bsdf::Dielectric { eta, roughness, thin } = *self {
             return match roughness {
-                Some(ggx) if !thin => rough_dielectric(ggx, eta, wi, wo).1,
+                Some(mf) if !thin => rough_dielectric(mf, eta, wi, wo).1,
                 _ => 0.0,
             };
         }
@@ -366,13 +367,13 @@ impl Bsdf {
             }
             Bsdf::Diffuse { .. } => wo.z * FRAC_1_PI,
             Bsdf::Conductor { roughness: None, .. } => 0.0,
-            Bsdf::Conductor { roughness: Some(ggx), .. } => {
+            Bsdf::Conductor { roughness: Some(mf), .. } => {
                 let h = (wi + wo).normalize_or_zero();
                 let cos = wo.dot(h);
                 if h == Vec3A::ZERO || cos <= 0.0 {
                     return 0.0;
                 }
-                ggx.visible_pdf(wi, h) / (4.0 * cos)
+                mf.visible_pdf(wi, h) / (4.0 * cos)
             }
         }
     }
@@ -393,7 +394,7 @@ impl Bsdf {
                 let Bsdf::Plastic { eta, specular_share, coat: Some(c), .. } = *self else { return None };
                 let p = Self::plastic_mirror_probability(eta, specular_share, Some(&c), wi.z);
                 let wo = if u_lobe < p {
-                    reflect(wi, c.ggx.sample_visible(wi, u))
+                    reflect(wi, c.mf.sample_visible(wi, u))
                 } else {
                     crate::geometry::warp::cosine_hemisphere(u)
                 };
@@ -428,19 +429,19 @@ impl Bsdf {
                 let wo = Vec3A::new(-wi.x, -wi.y, wi.z);
                 Some(BsdfSample { wo, weight: fresnel::conductor(wi.z, eta, k) * specular, pdf: 1.0, delta: true })
             }
-            Bsdf::Conductor { eta, k, specular, roughness: Some(ggx) } => {
-                let m = ggx.sample_visible(wi, u);
+            Bsdf::Conductor { eta, k, specular, roughness: Some(mf) } => {
+                let m = mf.sample_visible(wi, u);
                 let wo = reflect(wi, m);
                 let cos = wo.dot(m);
                 if wo.z <= 0.0 || cos <= 0.0 {
                     return None;
                 }
-                let pdf = ggx.visible_pdf(wi, m) / (4.0 * cos);
+                let pdf = mf.visible_pdf(wi, m) / (4.0 * cos);
                 if !(pdf > 0.0 && pdf.is_finite()) {
                     return None;
                 }
                 // f·cos/pdf = F·G(wi, wo)/G1(wi).
-                let weight = fresnel::conductor(wi.dot(m), eta, k) * specular * (ggx.g(wi, wo, m) / ggx.g1(wi, m));
+                let weight = fresnel::conductor(wi.dot(m), eta, k) * specular * (mf.g(wi, wo, m) / mf.g1(wi, m));
                 Some(BsdfSample { wo, weight, pdf, delta: false })
             }
         }
@@ -462,7 +463,7 @@ fn refract(wi: Vec3A, m: Vec3A, eta: f32, cos_i: f32, cos_t: f32) -> Vec3A {
 }
 
 /// `f` and `pdf` of the rough dielectric (Walter et al. 2007; radiance scaled by `1/η²`).
-fn rough_dielectric(ggx: Ggx, eta: f32, wi: Vec3A, wo: Vec3A) -> (f32, f32) {
+fn rough_dielectric(mf: Microfacet, eta: f32, wi: Vec3A, wo: Vec3A) -> (f32, f32) {
     let (wi, wo, eta) = upper(eta, wi, wo);
     if wi.z == 0.0 || wo.z == 0.0 {
         return (0.0, 0.0);
@@ -474,8 +475,8 @@ fn rough_dielectric(ggx: Ggx, eta: f32, wi: Vec3A, wo: Vec3A) -> (f32, f32) {
             return (0.0, 0.0);
         }
         let f = fresnel::dielectric(c, eta).0;
-        let value = f * ggx.d(m) * ggx.g(wi, wo, m) / (4.0 * wi.z * wo.z);
-        let pdf = f * ggx.visible_pdf(wi, m) / (4.0 * wo.dot(m));
+        let value = f * mf.d(m) * mf.g(wi, wo, m) / (4.0 * wi.z * wo.z);
+        let pdf = f * mf.visible_pdf(wi, m) / (4.0 * wo.dot(m));
         (value, pdf)
     } else {
         // The half vector of a refraction, facing +z.
@@ -489,8 +490,8 @@ fn rough_dielectric(ggx: Ggx, eta: f32, wi: Vec3A, wo: Vec3A) -> (f32, f32) {
         }
         let f = fresnel::dielectric(ci, eta).0;
         let denom = ci + eta * co;
-        let value = (1.0 - f) * ggx.d(m) * ggx.g(wi, wo, m) * ci * (-co) / (wi.z * -wo.z * denom * denom);
-        let pdf = (1.0 - f) * ggx.visible_pdf(wi, m) * eta * eta * (-co) / (denom * denom);
+        let value = (1.0 - f) * mf.d(m) * mf.g(wi, wo, m) * ci * (-co) / (wi.z * -wo.z * denom * denom);
+        let pdf = (1.0 - f) * mf.visible_pdf(wi, m) * eta * eta * (-co) / (denom * denom);
         (value, pdf)
     }
 }
@@ -498,7 +499,7 @@ fn rough_dielectric(ggx: Ggx, eta: f32, wi: Vec3A, wo: Vec3A) -> (f32, f32) {
 /// Samples glass: Fresnel picks reflection or refraction (so `F` cancels from the weight).
 fn sample_dielectric(
     eta: f32,
-    roughness: Option<Ggx>,
+    roughness: Option<Microfacet>,
     thin: bool,
     wi: Vec3A,
     u_lobe: f32,
@@ -516,7 +517,7 @@ fn sample_dielectric(
         let wo = if u_lobe < r { Vec3A::new(-wi.x, -wi.y, wi.z) } else { -wi };
         return Some(BsdfSample { wo, weight: Vec3A::ONE, pdf: 1.0, delta: true });
     }
-    let Some(ggx) = roughness else {
+    let Some(mf) = roughness else {
         let (f, cos_t, eta_t) = fresnel::dielectric(wi_up.z, eta_up);
         let (wo, weight) = if u_lobe < f {
             (Vec3A::new(-wi_up.x, -wi_up.y, wi_up.z), 1.0)
@@ -525,7 +526,7 @@ fn sample_dielectric(
         };
         return Some(BsdfSample { wo: wo * flip, weight: Vec3A::splat(weight), pdf: 1.0, delta: true });
     };
-    let m = ggx.sample_visible(wi_up, u);
+    let m = mf.sample_visible(wi_up, u);
     let ci = wi_up.dot(m);
     if ci <= 0.0 {
         return None;
@@ -544,11 +545,11 @@ fn sample_dielectric(
         }
         (wo, 1.0 / (eta_t * eta_t))
     };
-    let (_, pdf) = rough_dielectric(ggx, eta_up, wi_up, wo);
+    let (_, pdf) = rough_dielectric(mf, eta_up, wi_up, wo);
     if !(pdf > 0.0 && pdf.is_finite()) {
         return None;
     }
-    let g = ggx.g(wi_up, wo, m) / ggx.g1(wi_up, m);
+    let g = mf.g(wi_up, wo, m) / mf.g1(wi_up, m);
     Some(BsdfSample { wo: wo * flip, weight: Vec3A::splat(weight * g), pdf, delta: false })
 }
 

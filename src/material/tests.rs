@@ -2,6 +2,7 @@
 //! chi-square test over the sphere), `pdf` integrates to the fraction of samples returned, the
 //! sample weight is `eval·cos/pdf`, reflection is reciprocal, and the albedo stays ≤ 1 (= the
 //! Fresnel reflectance for a mirror). Seeds are fixed.
+use super::microfacet::{Distribution, Masking};
 use super::*;
 use crate::sampler::SampleStream;
 use crate::stats::chi_square_critical;
@@ -126,15 +127,31 @@ fn models() -> Vec<(&'static str, Bsdf)> {
     let gold = (Vec3A::new(0.143, 0.375, 1.442), Vec3A::new(3.983, 2.386, 1.603));
     vec![
         ("diffuse", Bsdf::Diffuse { reflectance: Vec3A::new(0.8, 0.5, 0.2) }),
-        ("conductor α=0.2", Bsdf::conductor(gold.0, gold.1, 0.2)),
-        ("conductor α=0.5", Bsdf::conductor(gold.0, gold.1, 0.5)),
-        ("conductor α=1", Bsdf::conductor(gold.0, gold.1, 1.0)),
-        ("glass α=0.2", Bsdf::dielectric(1.5, 0.2)),
-        ("glass α=0.6", Bsdf::dielectric(1.5, 0.6)),
+        ("conductor α=0.2", Bsdf::conductor(gold.0, gold.1, Microfacet::ggx(0.2))),
+        ("conductor α=0.5", Bsdf::conductor(gold.0, gold.1, Microfacet::ggx(0.5))),
+        ("conductor α=1", Bsdf::conductor(gold.0, gold.1, Microfacet::ggx(1.0))),
+        ("glass α=0.2", Bsdf::dielectric(1.5, Microfacet::ggx(0.2))),
+        ("glass α=0.6", Bsdf::dielectric(1.5, Microfacet::ggx(0.6))),
         ("plastic", Bsdf::plastic(Vec3A::new(0.5, 0.3, 0.1), 1.49, false)),
-        ("rough plastic α=0.1", Bsdf::plastic_with(Vec3A::new(0.5, 0.3, 0.1), 1.49, 0.1, false)),
-        ("rough plastic α=0.5", Bsdf::plastic_with(Vec3A::new(0.2, 0.6, 0.3), 1.6, 0.5, true)),
+        ("rough plastic α=0.1", Bsdf::plastic_with(Vec3A::new(0.5, 0.3, 0.1), 1.49, Microfacet::ggx(0.1), false)),
+        ("rough plastic α=0.5", Bsdf::plastic_with(Vec3A::new(0.2, 0.6, 0.3), 1.6, Microfacet::ggx(0.5), true)),
+        ("Beckmann conductor α=0.1", Bsdf::conductor(gold.0, gold.1, beckmann(0.1))),
+        ("Beckmann conductor α=0.5", Bsdf::conductor(gold.0, gold.1, beckmann(0.5))),
+        ("Beckmann conductor α=1", Bsdf::conductor(gold.0, gold.1, beckmann(1.0))),
+        ("Beckmann glass α=0.3", Bsdf::dielectric(1.5, beckmann(0.3))),
+        ("Beckmann rough plastic α=0.2", Bsdf::plastic_with(Vec3A::new(0.5, 0.3, 0.1), 1.49, beckmann(0.2), false)),
+        ("GGX separable conductor α=0.4", Bsdf::conductor(gold.0, gold.1, separable(Distribution::Ggx, 0.4))),
+        ("GGX separable glass α=0.4", Bsdf::dielectric(1.5, separable(Distribution::Ggx, 0.4))),
     ]
+}
+
+/// Beckmann microfacets of roughness `alpha`, masking as Mitsuba 3 combines it.
+fn beckmann(alpha: f32) -> Microfacet {
+    separable(Distribution::Beckmann, alpha)
+}
+
+fn separable(distribution: Distribution, alpha: f32) -> Microfacet {
+    Microfacet::new(distribution, Masking::Separable, alpha)
 }
 
 /// Incident angles: from outside, and for glass from inside too (π − θ).
@@ -170,10 +187,26 @@ fn sampling_follows_pdf() {
 #[test]
 fn chi_square_rejects_a_wrong_pdf() {
     let gold = (Vec3A::new(0.143, 0.375, 1.442), Vec3A::new(3.983, 2.386, 1.603));
-    let sampled = Bsdf::conductor(gold.0, gold.1, 0.5);
-    let claimed = Bsdf::conductor(gold.0, gold.1, 0.55);
+    let sampled = Bsdf::conductor(gold.0, gold.1, Microfacet::ggx(0.5));
+    let claimed = Bsdf::conductor(gold.0, gold.1, Microfacet::ggx(0.55));
     let (stat, critical) = chi2_test(&sampled, &claimed, dir(0.7, 0.3), 1e-3);
     assert!(stat > critical, "χ² {stat:.1} below {critical:.1}");
+    // Beckmann's samples against GGX's density of the same α, and against Beckmann's with
+    // the visible normals' density replaced by the plain `D(m)·m.z` (α 0.5 at 70°).
+    let beck = Bsdf::conductor(gold.0, gold.1, beckmann(0.5));
+    let ggx = Bsdf::conductor(gold.0, gold.1, separable(Distribution::Ggx, 0.5));
+    let (stat, critical) = chi2_test(&beck, &ggx, dir(0.7, 0.3), 1e-3);
+    assert!(stat > critical, "Beckmann against GGX: χ² {stat:.1} below {critical:.1}");
+    let wi = dir(1.2, 0.3);
+    let (h, _) = histogram(&beck, wi, 400_000, 17);
+    let mf = beckmann(0.5);
+    let e = expected(|wo| {
+        let m = (wi + wo).normalize_or_zero();
+        if wo.z <= 0.0 || m == Vec3A::ZERO { 0.0 } else { mf.d(m) * m.z / (4.0 * wo.dot(m)) }
+    });
+    let (stat, dof) = chi2(&h, &e, 400_000);
+    let critical = chi_square_critical(dof, 1e-3);
+    assert!(stat > critical, "Beckmann against D·cos: χ² {stat:.1} below {critical:.1}");
 }
 
 /// `∫ pdf dω` equals the fraction of calls that return a non-delta direction (within 1%
@@ -256,20 +289,26 @@ fn energy_is_conserved() {
     let white = Bsdf::Diffuse { reflectance: Vec3A::ONE };
     let perfect =
         Bsdf::Conductor { eta: Vec3A::splat(1e-4), k: Vec3A::splat(1e4), specular: Vec3A::ONE, roughness: None };
-    let white_metal = |alpha| Bsdf::conductor(Vec3A::splat(1e-4), Vec3A::splat(1e4), alpha);
+    let white_metal = |rough| Bsdf::conductor(Vec3A::splat(1e-4), Vec3A::splat(1e4), rough);
     let mut rng = SampleStream::new(8, 0, 0);
     for theta in [0.0, 0.4, 0.8, 1.2, 1.5] {
         let wi = dir(theta, 0.0);
         let glass = [
-            ("glass α 0.3", Bsdf::dielectric(1.5, 0.3)),
-            ("glass α 0.3 inside", Bsdf::dielectric(1.0 / 1.5, 0.3)),
+            ("glass α 0.3", Bsdf::dielectric(1.5, Microfacet::ggx(0.3))),
+            ("glass α 0.3 inside", Bsdf::dielectric(1.0 / 1.5, Microfacet::ggx(0.3))),
             ("white plastic", Bsdf::plastic(Vec3A::ONE, 1.49, false)),
             ("white plastic, nonlinear", Bsdf::plastic(Vec3A::ONE, 1.49, true)),
-            ("white rough plastic", Bsdf::plastic_with(Vec3A::ONE, 1.49, 0.3, false)),
-            ("white rough plastic, nonlinear", Bsdf::plastic_with(Vec3A::ONE, 1.49, 0.3, true)),
+            ("white rough plastic", Bsdf::plastic_with(Vec3A::ONE, 1.49, Microfacet::ggx(0.3), false)),
+            ("white rough plastic, nonlinear", Bsdf::plastic_with(Vec3A::ONE, 1.49, Microfacet::ggx(0.3), true)),
+            ("Beckmann α 0.3", white_metal(beckmann(0.3))),
+            ("Beckmann α 1", white_metal(beckmann(1.0))),
+            ("Beckmann glass α 0.5", Bsdf::dielectric(1.5, beckmann(0.5))),
+            ("Beckmann glass α 0.5 inside", Bsdf::dielectric(1.0 / 1.5, beckmann(0.5))),
         ];
         for (name, b) in
-            [("white", white), ("α 0.3", white_metal(0.3)), ("α 1", white_metal(1.0))].into_iter().chain(glass)
+            [("white", white), ("α 0.3", white_metal(Microfacet::ggx(0.3))), ("α 1", white_metal(Microfacet::ggx(1.0)))]
+                .into_iter()
+                .chain(glass)
         {
             let n = 100_000;
             let (mut sum, mut sum_sq) = (0.0f64, 0.0f64);
@@ -300,7 +339,7 @@ fn energy_is_conserved() {
         assert!(s.delta && (s.weight - Vec3A::ONE).abs().max_element() < 1e-3, "{}", s.weight);
         assert!((s.wo.z - wi.z).abs() < 1e-6 && (s.wo.x + wi.x).abs() < 1e-6);
         // Smooth glass: Fresnel splits the energy exactly; refraction obeys Snell's law.
-        let smooth = Bsdf::dielectric(1.5, 0.0);
+        let smooth = Bsdf::dielectric(1.5, Microfacet::ggx(0.0));
         let (f, _, _) = fresnel::dielectric(wi.z, 1.5);
         let r = smooth.sample(wi, f * 0.999, Vec2::ZERO).unwrap();
         let t = smooth.sample(wi, f + (1.0 - f) * 0.5, Vec2::ZERO).unwrap();
@@ -318,7 +357,9 @@ fn energy_is_conserved() {
 /// smooth interface's diffuse Fresnel reflectance.
 #[test]
 fn rough_coat_tends_to_the_smooth_one() {
-    let Bsdf::Plastic { coat: Some(coat), fdr_int, .. } = Bsdf::plastic_with(Vec3A::ONE, 1.49, 0.002, false) else {
+    let Bsdf::Plastic { coat: Some(coat), fdr_int, .. } =
+        Bsdf::plastic_with(Vec3A::ONE, 1.49, Microfacet::ggx(0.002), false)
+    else {
         panic!("a rough plastic has a coat");
     };
     for i in 0..=20 {
@@ -330,12 +371,14 @@ fn rough_coat_tends_to_the_smooth_one() {
     // Mitsuba's sum over 64 equally spaced cosines (both ends included, divided by 64) is a
     // coarse rule for ∫ 2Rμ dμ: 0.580 against 0.590 here, which we keep to match it.
     assert!((fdr_int - diffuse_fresnel(1.0 / 1.49)).abs() < 0.02, "{fdr_int} vs {}", diffuse_fresnel(1.0 / 1.49));
-    let Bsdf::Plastic { coat: Some(rough), .. } = Bsdf::plastic_with(Vec3A::ONE, 1.49, 0.6, false) else {
+    let Bsdf::Plastic { coat: Some(rough), .. } = Bsdf::plastic_with(Vec3A::ONE, 1.49, Microfacet::ggx(0.6), false)
+    else {
         panic!("a rough plastic has a coat");
     };
     assert!(rough.transmittance.iter().all(|t| (0.0..=1.0).contains(t)));
     // The same (α, η) shares one table.
-    let Bsdf::Plastic { coat: Some(again), .. } = Bsdf::plastic_with(Vec3A::ZERO, 1.49, 0.6, true) else {
+    let Bsdf::Plastic { coat: Some(again), .. } = Bsdf::plastic_with(Vec3A::ZERO, 1.49, Microfacet::ggx(0.6), true)
+    else {
         panic!("a rough plastic has a coat");
     };
     assert!(std::ptr::eq(rough.transmittance, again.transmittance));

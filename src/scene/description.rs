@@ -197,8 +197,14 @@ pub struct MaterialDescription {
     /// Dielectric, thin dielectric, plastic: interior and exterior index of refraction.
     pub ior: Option<f32>,
     pub exterior_ior: Option<f32>,
-    /// Conductor, dielectric, plastic: GGX roughness `α` (0 or absent: smooth).
+    /// Conductor, dielectric, plastic: microfacet roughness `α` (0 or absent: smooth).
     pub roughness: Option<f32>,
+    /// Conductor, dielectric, plastic: the microfacets' distribution, `"ggx"` (default) or
+    /// `"beckmann"`.
+    pub distribution: Option<DistributionDescription>,
+    /// Conductor, dielectric, plastic: how the microfacets' masking and shadowing combine,
+    /// `"correlated"` (height-correlated, pbrt-v4's; default) or `"separable"` (Mitsuba 3's).
+    pub masking: Option<MaskingDescription>,
     /// Plastic: Mitsuba's `nonlinear` inter-reflection of the base.
     pub nonlinear: Option<bool>,
     /// Opaque materials: scatter on both sides (default) or only on the normal's.
@@ -213,6 +219,22 @@ pub struct MaterialDescription {
     pub specular_texture: Option<String>,
     /// A texture for the roughness `α` (conductor, dielectric): its luminance.
     pub roughness_texture: Option<String>,
+}
+
+/// A microfacet distribution (see [`crate::material::microfacet::Distribution`]).
+#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum DistributionDescription {
+    Ggx,
+    Beckmann,
+}
+
+/// How microfacet masking and shadowing combine (see [`crate::material::microfacet::Masking`]).
+#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum MaskingDescription {
+    Correlated,
+    Separable,
 }
 
 /// The kinds of texture (see [`crate::material::texture::Texture`]).

@@ -1,11 +1,15 @@
 //! Loading a scene: the TOML file, its OBJ/MTL meshes, and every check that turns bad input
 //! into an error naming the file (and line, where the parser knows it).
-use super::description::{LightKind, MapLayout, MaterialDescription, SceneDescription, ShapeDescription, ShapeKind};
+use super::description::{
+    DistributionDescription, LightKind, MapLayout, MaskingDescription, MaterialDescription, SceneDescription,
+    ShapeDescription, ShapeKind,
+};
 use super::import::{Format, ImportOptions};
 use super::{Attributes, Camera, Lights, Material, Scene, TextureSlots};
 use crate::geometry::{Vec2, Vec3A};
 use crate::light::envmap::Environment;
 use crate::light::point::PointLight;
+use crate::material::microfacet::{Distribution, Masking, Microfacet};
 use crate::material::texture::Texture;
 use crate::material::texture::{Bitmap, Filter, Wrap};
 use crate::material::{Bsdf, conductors};
@@ -211,7 +215,7 @@ fn material_from(
     // A textured plastic chooses its mirror by the texture's mean reflectance.
     let bsdf = match (bsdf, textures.reflectance) {
         (Bsdf::Plastic { eta, nonlinear, coat, .. }, Some(t)) => {
-            Bsdf::plastic_with(mean_of(t), eta, coat.map_or(0.0, |c| c.ggx.alpha), nonlinear)
+            Bsdf::plastic_with(mean_of(t), eta, coat.map_or(Microfacet::ggx(0.0), |c| c.mf), nonlinear)
         }
         (bsdf, _) => bsdf,
     };
@@ -345,10 +349,10 @@ fn bsdf_from(d: &MaterialDescription) -> std::result::Result<Bsdf, String> {
     let kind = format!("{:?}", d.kind).to_lowercase();
     let allowed: &[&str] = match d.kind {
         K::Diffuse => &["diffuse"],
-        K::Conductor => &["metal", "eta", "k", "specular", "roughness"],
-        K::Dielectric => &["ior", "exterior_ior", "roughness"],
+        K::Conductor => &["metal", "eta", "k", "specular", "roughness", "distribution", "masking"],
+        K::Dielectric => &["ior", "exterior_ior", "roughness", "distribution", "masking"],
         K::ThinDielectric => &["ior", "exterior_ior"],
-        K::Plastic => &["diffuse", "ior", "exterior_ior", "nonlinear", "roughness"],
+        K::Plastic => &["diffuse", "ior", "exterior_ior", "nonlinear", "roughness", "distribution", "masking"],
     };
     let given = [
         ("diffuse", d.diffuse != [0.0; 3] && d.kind != K::Diffuse),
@@ -359,6 +363,8 @@ fn bsdf_from(d: &MaterialDescription) -> std::result::Result<Bsdf, String> {
         ("ior", d.ior.is_some()),
         ("exterior_ior", d.exterior_ior.is_some()),
         ("roughness", d.roughness.is_some()),
+        ("distribution", d.distribution.is_some()),
+        ("masking", d.masking.is_some()),
         ("nonlinear", d.nonlinear.is_some()),
     ];
     if let Some((key, _)) = given.iter().find(|(key, set)| *set && !allowed.contains(key)) {
@@ -368,6 +374,17 @@ fn bsdf_from(d: &MaterialDescription) -> std::result::Result<Bsdf, String> {
     if !(alpha.is_finite() && (0.0..=1.0).contains(&alpha)) {
         return Err(format!("roughness must lie in [0, 1], got {alpha}"));
     }
+    let distribution = match d.distribution {
+        None | Some(DistributionDescription::Ggx) => Distribution::Ggx,
+        Some(DistributionDescription::Beckmann) => Distribution::Beckmann,
+    };
+    let masking = match d.masking {
+        None | Some(MaskingDescription::Correlated) => Masking::Correlated,
+        Some(MaskingDescription::Separable) => Masking::Separable,
+    };
+    // A roughness texture sets α per hit: the material is rough whatever `roughness` says.
+    let alpha = if d.roughness_texture.is_some() { alpha.max(Microfacet::MIN_ALPHA) } else { alpha };
+    let rough = Microfacet::new(distribution, masking, alpha);
     // Defaults: glass 1.5; plastic 1.49 (Mitsuba's polypropylene); outside, vacuum.
     let eta = |default: f32| -> std::result::Result<f32, String> {
         let (int, ext) = (d.ior.unwrap_or(default), d.exterior_ior.unwrap_or(1.0));
@@ -395,14 +412,14 @@ fn bsdf_from(d: &MaterialDescription) -> std::result::Result<Bsdf, String> {
                 _ => return Err("give either `metal` or both `eta` and `k`".into()),
             };
             let specular = triple("specular", d.specular.unwrap_or([1.0; 3]), 1.0)?;
-            match Bsdf::conductor(eta, k, alpha) {
+            match Bsdf::conductor(eta, k, rough) {
                 Bsdf::Conductor { eta, k, roughness, .. } => Bsdf::Conductor { eta, k, specular, roughness },
                 other => other,
             }
         }
-        K::Dielectric => Bsdf::dielectric(eta(1.5)?, alpha),
+        K::Dielectric => Bsdf::dielectric(eta(1.5)?, rough),
         K::ThinDielectric => Bsdf::Dielectric { eta: eta(1.5)?, roughness: None, thin: true },
-        K::Plastic => Bsdf::plastic_with(vec3(d.diffuse), eta(1.49)?, alpha, d.nonlinear.unwrap_or(false)),
+        K::Plastic => Bsdf::plastic_with(vec3(d.diffuse), eta(1.49)?, rough, d.nonlinear.unwrap_or(false)),
     })
 }
 

@@ -17,7 +17,7 @@ use crate::geometry::{Frame, Hit, Ray, Vec2, Vec3A, barycentric_error, luminance
 use crate::light::envmap::Environment;
 use crate::light::point::PointLight;
 use crate::material::Bsdf;
-use crate::material::microfacet::Ggx;
+use crate::material::microfacet::Microfacet;
 use crate::material::texture::Texture;
 use std::f32::consts::PI;
 use std::path::PathBuf;
@@ -651,11 +651,13 @@ impl Scene {
             }
         }
         if let Some(i) = slots.roughness {
-            let alpha = luminance(self.texture(i, uv)).clamp(Ggx::MIN_ALPHA, 1.0);
+            let alpha = luminance(self.texture(i, uv)).clamp(Microfacet::MIN_ALPHA, 1.0);
             let alpha = if alpha.is_nan() { 1.0 } else { alpha };
             match &mut material.bsdf {
-                Bsdf::Conductor { roughness, .. } | Bsdf::Dielectric { roughness, thin: false, .. } => {
-                    *roughness = Some(Ggx::new(alpha));
+                // (The material's own microfacets, made rough by its loader, take the α.)
+                Bsdf::Conductor { roughness: Some(r), .. }
+                | Bsdf::Dielectric { roughness: Some(r), thin: false, .. } => {
+                    r.alpha = alpha;
                 }
                 _ => {}
             }

@@ -10,9 +10,9 @@
 //! What lies outside the subset gives one warning naming the element, its file and line, and
 //! what is used instead (`strict`: an error).
 use super::super::description::{
-    CameraDescription, EnvironmentDescription, FilterDescription, LightDescription, MaterialDescription, MaterialKind,
-    MeshDescription, RenderDescription, RotateDescription, SceneDescription, ShapeDescription, ShapeKind,
-    TextureDescription, TextureKind, WrapDescription,
+    CameraDescription, DistributionDescription, EnvironmentDescription, FilterDescription, LightDescription,
+    MaskingDescription, MaterialDescription, MaterialKind, MeshDescription, RenderDescription, RotateDescription,
+    SceneDescription, ShapeDescription, ShapeKind, TextureDescription, TextureKind, WrapDescription,
 };
 use super::{At, ImportOptions, Imported, empty_description, syntax, to_rows, unsupported};
 use crate::error::{Error, Result};
@@ -718,33 +718,46 @@ impl Translator<'_, '_> {
         }
     }
 
-    /// GGX `alpha` of a rough BSDF (Mitsuba's default 0.1); Beckmann is approximated by
-    /// GGX of the same `alpha`, anisotropic `alpha_u`/`alpha_v` by their mean.
-    fn alpha(&mut self, b: &Obj) -> Result<(f32, Option<String>)> {
+    /// The microfacets of a rough BSDF into `m`: its distribution (Mitsuba's default
+    /// Beckmann), Mitsuba 3's separable masking, and `alpha` (default 0.1; anisotropic
+    /// `alpha_u`/`alpha_v` by their mean) or a texture of it (`textured`: whether the BSDF
+    /// can take one).
+    fn microfacets(&mut self, b: &Obj, m: &mut MaterialDescription, textured: bool) -> Result<()> {
         let distribution = self.text(b, "distribution")?.unwrap_or_else(|| "beckmann".into());
-        if distribution != "ggx" {
-            self.unsupported(
-                &b.at,
-                format!(
-                    "<bsdf type=\"{}\">: the {distribution} distribution is rendered as GGX of the same alpha",
-                    b.plugin
-                ),
-            )?;
-        }
+        m.distribution = Some(match distribution.as_str() {
+            "ggx" => DistributionDescription::Ggx,
+            "beckmann" => DistributionDescription::Beckmann,
+            other => {
+                self.unsupported(
+                    &b.at,
+                    format!("<bsdf type=\"{}\">: unknown distribution \"{other}\": beckmann used", b.plugin),
+                )?;
+                DistributionDescription::Beckmann
+            }
+        });
+        m.masking = Some(MaskingDescription::Separable);
         if b.param("alpha_u").is_some() || b.param("alpha_v").is_some() {
             let u = self.float(b, "alpha_u", 0.1)?;
             let v = self.float(b, "alpha_v", 0.1)?;
             self.unsupported(&b.at, "anisotropic roughness: the mean of alpha_u and alpha_v used".into())?;
-            return Ok((((u + v) / 2.0) as f32, None));
+            m.roughness = Some(((u + v) / 2.0) as f32);
+            return Ok(());
         }
-        match b.param("alpha").cloned() {
-            Some((_, Value::Object(t), _)) if t.tag == "texture" => Ok((0.1, Some(self.texture(&t)?))),
+        let texture = match b.param("alpha").cloned() {
+            Some((_, Value::Object(t), _)) if t.tag == "texture" => Some(self.texture(&t)?),
             Some((_, Value::Ref(id), at)) => {
                 let t = self.resolve_ref(&id, &at)?.clone();
-                Ok((0.1, Some(self.texture(&t)?)))
+                Some(self.texture(&t)?)
             }
-            _ => Ok((self.float(b, "alpha", 0.1)? as f32, None)),
+            _ => None,
+        };
+        m.roughness = Some(if texture.is_some() { 0.1 } else { self.float(b, "alpha", 0.1)? as f32 });
+        if texture.is_some() && !textured {
+            self.unsupported(&b.at, "a textured roughness of a plastic is not supported: 0.1 used".into())?;
+        } else {
+            m.roughness_texture = texture;
         }
+        Ok(())
     }
 
     /// A BSDF object (or a reference to one) as a material.
@@ -810,9 +823,7 @@ impl Translator<'_, '_> {
                 m.specular = c;
                 m.specular_texture = t;
                 if rough {
-                    let (alpha, t) = self.alpha(b)?;
-                    m.roughness = Some(alpha);
-                    m.roughness_texture = t;
+                    self.microfacets(b, &mut m, true)?;
                 }
             }
             "dielectric" | "roughdielectric" | "thindielectric" => {
@@ -841,9 +852,7 @@ impl Translator<'_, '_> {
                 m.ior = Some(self.ior(b, "int_ior", 1.5046)?);
                 m.exterior_ior = Some(self.ior(b, "ext_ior", 1.000_277)?);
                 if rough {
-                    let (alpha, t) = self.alpha(b)?;
-                    m.roughness = Some(alpha);
-                    m.roughness_texture = t;
+                    self.microfacets(b, &mut m, true)?;
                 }
             }
             "plastic" | "roughplastic" => {
@@ -871,11 +880,7 @@ impl Translator<'_, '_> {
                 m.exterior_ior = Some(self.ior(b, "ext_ior", 1.000_277)?);
                 m.nonlinear = Some(self.boolean(b, "nonlinear", false)?);
                 if rough {
-                    let (alpha, t) = self.alpha(b)?;
-                    if t.is_some() {
-                        self.unsupported(&b.at, "a textured roughness of a plastic is not supported: 0.1 used".into())?;
-                    }
-                    m.roughness = Some(alpha);
+                    self.microfacets(b, &mut m, false)?;
                 }
             }
             other => {
@@ -1390,6 +1395,19 @@ mod tests {
             (m[0].kind, m[0].metal.as_deref(), m[0].roughness),
             (MaterialKind::Conductor, Some("Cu"), Some(0.1))
         );
+        assert_eq!(
+            (m[0].distribution, m[0].masking),
+            (Some(DistributionDescription::Ggx), Some(MaskingDescription::Separable))
+        );
+        let d2 = ok(
+            "<shape type=\"cube\"><bsdf type=\"roughdielectric\"><float name=\"alpha\" value=\"0.3\"/></bsdf></shape>",
+        );
+        let rough = d2.materials.values().next().unwrap();
+        assert_eq!(
+            (rough.roughness, rough.distribution),
+            (Some(0.3), Some(DistributionDescription::Beckmann)),
+            "Mitsuba's default"
+        );
         assert_eq!(m[0].two_sided, Some(false), "Mitsuba's surfaces are one-sided");
         assert_eq!((m[1].kind, m[1].ior, m[1].exterior_ior), (MaterialKind::Dielectric, Some(1.333), Some(1.000_277)));
         assert_eq!((m[2].kind, m[2].ior, m[2].two_sided), (MaterialKind::Plastic, Some(1.49), Some(true)));
@@ -1406,8 +1424,8 @@ mod tests {
         let r = read(body, &[], false).unwrap();
         assert_eq!(r.warnings.len(), 1, "{:?}", r.warnings);
         assert!(r.warnings[0].starts_with("/nowhere/scene.xml:3:") && r.warnings[0].contains("grey diffuse"));
-        let r = read("<shape type=\"cube\"><bsdf type=\"roughplastic\"/></shape>", &[], false).unwrap();
-        assert!(r.warnings[0].contains("beckmann") && r.warnings[0].contains("GGX"), "{:?}", r.warnings);
+        let r = read("<shape type=\"cube\"><bsdf type=\"roughplastic\"><string name=\"distribution\" value=\"phong\"/></bsdf></shape>", &[], false).unwrap();
+        assert!(r.warnings[0].contains("phong") && r.warnings[0].contains("beckmann used"), "{:?}", r.warnings);
         let e = message(read(body, &[], true));
         assert!(e.contains("line 3") && e.contains("hair") && e.contains("--strict"), "{e}");
         let r = read("<shape type=\"serialized\"/><emitter type=\"projector\"/>", &[], false).unwrap();
