@@ -1535,6 +1535,35 @@ mod tests {
             assert!(e.contains(want), "{materials}: {e}");
         }
     }
+
+    /// `distribution` and `masking` choose the microfacets; they apply where `roughness` does,
+    /// and a roughness texture keeps them.
+    #[test]
+    fn microfacet_keys() {
+        use crate::material::microfacet::{Distribution, Masking};
+        let parse = |m: &str| toml::from_str::<MaterialDescription>(m).map_err(|e| e.to_string());
+        let rough = |m: &str| match bsdf_from(&parse(m).unwrap()) {
+            Ok(Bsdf::Conductor { roughness, .. } | Bsdf::Dielectric { roughness, .. }) => roughness,
+            Ok(Bsdf::Plastic { coat, .. }) => coat.map(|c| c.mf),
+            other => panic!("{m}: {other:?}"),
+        };
+        let r = rough("type = \"conductor\"\nroughness = 0.3\ndistribution = \"beckmann\"\nmasking = \"separable\"");
+        assert_eq!(
+            r.map(|r| (r.alpha, r.distribution, r.masking)),
+            Some((0.3, Distribution::Beckmann, Masking::Separable))
+        );
+        let r = rough("type = \"dielectric\"\nroughness = 0.3");
+        assert_eq!(r.map(|r| (r.distribution, r.masking)), Some((Distribution::Ggx, Masking::Correlated)));
+        let r = rough("type = \"plastic\"\nroughness = 0.2\ndistribution = \"beckmann\"");
+        assert_eq!(r.map(|r| r.distribution), Some(Distribution::Beckmann));
+        let r = rough("type = \"conductor\"\nroughness_texture = \"t\"\ndistribution = \"beckmann\"");
+        assert_eq!(r.map(|r| r.distribution), Some(Distribution::Beckmann), "rough through its texture");
+        let e = bsdf_from(&parse("distribution = \"beckmann\"").unwrap()).unwrap_err();
+        assert!(e.contains("`distribution` does not apply to type \"diffuse\""), "{e}");
+        let e = bsdf_from(&parse("type = \"thindielectric\"\nmasking = \"separable\"").unwrap()).unwrap_err();
+        assert!(e.contains("`masking` does not apply"), "{e}");
+        assert!(parse("type = \"conductor\"\ndistribution = \"phong\"").unwrap_err().contains("unknown variant"));
+    }
 }
 
 #[cfg(test)]
