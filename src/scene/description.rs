@@ -303,7 +303,7 @@ impl TextureDescription {
     }
 }
 
-#[derive(Debug, Deserialize)]
+#[derive(Debug, Deserialize, Clone)]
 #[serde(deny_unknown_fields)]
 pub struct MeshDescription {
     /// OBJ file, relative to the scene file's folder.
@@ -350,7 +350,7 @@ pub struct RotateDescription {
 
 /// A shape placed in the scene: the canonical shape, then `scale`, `rotate` and `translate`
 /// in that order, or a whole `matrix` (row-major 4×4, last row 0 0 0 1).
-#[derive(Debug, Deserialize)]
+#[derive(Debug, Deserialize, Clone)]
 #[serde(deny_unknown_fields)]
 pub struct ShapeDescription {
     #[serde(rename = "type")]

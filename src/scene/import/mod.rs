@@ -3,8 +3,9 @@
 pub(crate) mod mitsuba;
 pub(crate) mod pbrt;
 
-use super::description::{CameraDescription, SceneDescription};
+use super::description::{CameraDescription, InlineMesh, MeshDescription, SceneDescription, ShapeDescription};
 use crate::error::{Error, Result};
+use glam::{DMat4, DVec3};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::rc::Rc;
@@ -101,4 +102,115 @@ impl Format {
             _ => Format::Toml,
         }
     }
+}
+
+/// The shapes of an instancing prototype (pbrt's object, Mitsuba's shapegroup) as the
+/// description holds them, each already placed by the transforms given at its definition.
+/// Instancing copies them, placed further by the instance's transform: instances are
+/// flattened into triangles (memory grows with the copies; the loader's triangle limit holds).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Prototype {
+    meshes: Vec<MeshDescription>,
+    shapes: Vec<ShapeDescription>,
+    inline: Vec<InlineMesh>,
+}
+
+/// How much a description held when a prototype's definition began.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Mark {
+    meshes: usize,
+    shapes: usize,
+    inline: usize,
+}
+
+/// Most triangles written out inline that instancing may copy, in all (pbrt's instanced
+/// `trianglemesh`es; meshes from files are counted by the loader).
+pub(crate) const MAX_INSTANCED_TRIANGLES: usize = crate::scene::load::MAX_TRIANGLES;
+
+impl Prototype {
+    pub(crate) fn mark(out: &SceneDescription) -> Mark {
+        Mark { meshes: out.meshes.len(), shapes: out.shapes.len(), inline: out.inline_meshes.len() }
+    }
+
+    /// Takes what `out` gained since `mark` out of it, as a prototype.
+    pub(crate) fn capture(out: &mut SceneDescription, mark: Mark) -> Self {
+        Self {
+            meshes: out.meshes.split_off(mark.meshes.min(out.meshes.len())),
+            shapes: out.shapes.split_off(mark.shapes.min(out.shapes.len())),
+            inline: out.inline_meshes.split_off(mark.inline.min(out.inline_meshes.len())),
+        }
+    }
+
+    /// Adds a copy placed by `m` (after the prototype's own transforms) to `out`. `budget`:
+    /// inline triangles still allowed; an error when the copy would exceed it.
+    pub(crate) fn instantiate(
+        &self,
+        m: DMat4,
+        out: &mut SceneDescription,
+        budget: &mut usize,
+    ) -> std::result::Result<(), String> {
+        let det = m.determinant();
+        if !(m.is_finite() && det.is_finite() && det != 0.0) {
+            return Err("the instance's transform is not finite or flattens it".into());
+        }
+        let triangles: usize = self.inline.iter().map(|i| i.indices.len() / 3).sum();
+        *budget = budget
+            .checked_sub(triangles)
+            .ok_or_else(|| format!("instancing copies more than {MAX_INSTANCED_TRIANGLES} triangles"))?;
+        for mesh in &self.meshes {
+            let own = mesh.matrix.as_ref().map_or(DMat4::IDENTITY, from_rows);
+            out.meshes.push(MeshDescription { matrix: Some(to_rows(m * own)), ..mesh.clone() });
+        }
+        for shape in &self.shapes {
+            let own = shape_matrix(shape);
+            out.shapes.push(ShapeDescription {
+                matrix: Some(to_rows(m * own)),
+                scale: None,
+                rotate: None,
+                translate: None,
+                ..shape.clone()
+            });
+        }
+        let normal_map = m.inverse().transpose();
+        for mesh in &self.inline {
+            let has_normals = mesh.normals.is_some();
+            out.inline_meshes.push(InlineMesh {
+                positions: mesh
+                    .positions
+                    .iter()
+                    .map(|p| m.transform_point3(DVec3::from_array(p.map(f64::from))).as_vec3().to_array())
+                    .collect(),
+                normals: mesh.normals.as_ref().map(|n| {
+                    n.iter()
+                        .map(|v| normal_map.transform_vector3(DVec3::from_array(v.map(f64::from))).as_vec3().to_array())
+                        .collect()
+                }),
+                // Without normals, the winding says which side is out: a mirroring instance
+                // turns it (with normals, they decide).
+                reverse_winding: mesh.reverse_winding != (det < 0.0 && !has_normals),
+                ..mesh.clone()
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Rows (the description's `matrix`) as a matrix.
+pub(crate) fn from_rows(r: &[[f32; 4]; 4]) -> DMat4 {
+    DMat4::from_cols_array_2d(&r.map(|row| row.map(f64::from))).transpose()
+}
+
+/// A canonical shape's placement: its `matrix`, or `scale`, then `rotate`, then `translate`.
+fn shape_matrix(s: &ShapeDescription) -> DMat4 {
+    if let Some(r) = &s.matrix {
+        return from_rows(r);
+    }
+    let scale = s.scale.map_or(DVec3::ONE, |v| DVec3::from_array(v.map(f64::from)));
+    let rotate = s.rotate.map_or(DMat4::IDENTITY, |r| {
+        DVec3::from_array(r.axis.map(f64::from))
+            .try_normalize()
+            .map_or(DMat4::IDENTITY, |axis| DMat4::from_axis_angle(axis, f64::from(r.angle).to_radians()))
+    });
+    let translate = s.translate.map_or(DVec3::ZERO, |v| DVec3::from_array(v.map(f64::from)));
+    DMat4::from_translation(translate) * rotate * DMat4::from_scale(scale)
 }

@@ -14,7 +14,10 @@ use super::super::description::{
     MaterialDescription, MaterialKind, MeshDescription, RenderDescription, SceneDescription, ShapeDescription,
     ShapeKind, TextureDescription, TextureKind, WrapDescription,
 };
-use super::{At, ImportOptions, Imported, empty_description, syntax, to_rows, unsupported};
+use super::{
+    At, ImportOptions, Imported, MAX_INSTANCED_TRIANGLES, Mark, Prototype, empty_description, syntax, to_rows,
+    unsupported,
+};
 use crate::error::Result;
 use glam::{DMat4, DVec3, DVec4};
 use std::collections::HashMap;
@@ -248,6 +251,11 @@ struct Parser<'o> {
     camera_seen: bool,
     film: (i64, i64, Option<[f64; 4]>),
     camera: Option<(DMat4, f64, At)>,
+    /// Objects (`ObjectBegin`) by name, and the one being defined with where it began.
+    objects: HashMap<String, Prototype>,
+    defining: Option<(String, Mark, At)>,
+    /// `ObjectInstance`s: the object's name and the transform then.
+    instances: Vec<(String, DMat4, At)>,
 }
 
 /// Reads the pbrt-v4 scene at `path` (text `text`).
@@ -274,6 +282,9 @@ pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result
         camera_seen: false,
         film: (1280, 720, None),
         camera: None,
+        objects: HashMap::new(),
+        defining: None,
+        instances: Vec::new(),
     };
     p.file(path, text)?;
     p.finish()?;
@@ -722,12 +733,40 @@ impl Parser<'_> {
                 let params = c.params()?;
                 self.shape(&kind, &params, at)?;
             }
-            "MakeNamedMedium" | "ObjectBegin" | "ObjectInstance" => {
+            "MakeNamedMedium" => {
                 let name = c.text(d)?;
                 let _ = c.params()?;
                 self.unsupported(at, format!("{d} \"{name}\" is not supported: ignored"))?;
             }
-            "ObjectEnd" => {}
+            "ObjectBegin" => {
+                let name = c.text(d)?;
+                if let Some((open, _, _)) = &self.defining {
+                    return Err(syntax(at, format!("ObjectBegin \"{name}\" inside the definition of \"{open}\"")));
+                }
+                if self.stack.len() >= MAX_ATTRIBUTE_DEPTH {
+                    return Err(syntax(at, format!("{d} nests deeper than {MAX_ATTRIBUTE_DEPTH}")));
+                }
+                // As pbrt-v4: an attribute block of its own, shapes without area lights.
+                self.stack.push(self.state.clone());
+                self.defining = Some((name, Prototype::mark(&self.out), at.clone()));
+            }
+            "ObjectEnd" => {
+                let (name, mark, _) =
+                    self.defining.take().ok_or_else(|| syntax(at, "ObjectEnd without an ObjectBegin"))?;
+                self.state = self.stack.pop().ok_or_else(|| syntax(at, "ObjectEnd without a matching begin"))?;
+                let prototype = Prototype::capture(&mut self.out, mark);
+                if self.objects.insert(name.clone(), prototype).is_some() {
+                    self.unsupported(at, format!("object \"{name}\" is defined again: the new definition used"))?;
+                }
+            }
+            "ObjectInstance" => {
+                let name = c.text(d)?;
+                if self.defining.is_some() {
+                    return Err(syntax(at, format!("ObjectInstance \"{name}\" inside an object's definition")));
+                }
+                // Resolved at the end: pbrt-v4 lets an instance come before its definition.
+                self.instances.push((name, self.state.ctm, at.clone()));
+            }
             "MediumInterface" => {
                 let _ = c.text(d)?;
                 if let Some(Token::Text(_)) = c.peek() {
@@ -792,6 +831,16 @@ impl Parser<'_> {
 
     /// The camera and film, once the whole file is read.
     fn finish(&mut self) -> Result<()> {
+        if let Some((name, _, at)) = &self.defining {
+            return Err(syntax(at, format!("ObjectBegin \"{name}\" without an ObjectEnd")));
+        }
+        let mut budget = MAX_INSTANCED_TRIANGLES;
+        for (name, ctm, at) in std::mem::take(&mut self.instances) {
+            match self.objects.get(&name) {
+                Some(object) => object.instantiate(ctm, &mut self.out, &mut budget).map_err(|e| syntax(&at, e))?,
+                None => self.unsupported(&at, format!("ObjectInstance \"{name}\": no such object: skipped"))?,
+            }
+        }
         let (w, h, crop) = self.film;
         let default_at = At { file: Rc::new(self.files[0].clone()), line: 1 };
         if w < 1 || h < 1 || w > i64::from(u32::MAX) || h > i64::from(u32::MAX) {
@@ -1158,12 +1207,19 @@ impl Parser<'_> {
 
     /// The material a shape declared now gets: the current one, made emitting by the area
     /// light in force.
-    fn shape_material(&mut self) -> String {
+    fn shape_material(&mut self) -> Result<String> {
         let base = self.state.material.clone();
-        let Some(light) = self.state.area_light.clone() else { return base };
+        let Some(light) = self.state.area_light.clone() else { return Ok(base) };
+        if self.defining.is_some() {
+            // pbrt-v4 does not instance area lights either (it warns, and the shape does
+            // not emit).
+            let at = self.defining.as_ref().map(|(_, _, at)| at.clone()).expect("defining");
+            self.unsupported(&at, "an area light in an object (instances do not emit): not emitting".into())?;
+            return Ok(base);
+        }
         let key = format!("{base}|{:?}|{}", light.radiance, light.two_sided);
         if let Some(name) = self.emitting.get(&key) {
-            return name.clone();
+            return Ok(name.clone());
         }
         let mut m = self.out.materials.get(&base).cloned().unwrap_or_default();
         m.emission = light.radiance;
@@ -1171,7 +1227,7 @@ impl Parser<'_> {
         let name = self.fresh("emitter");
         self.out.materials.insert(name.clone(), m);
         self.emitting.insert(key, name.clone());
-        name
+        Ok(name)
     }
 
     fn shape(&mut self, kind: &str, params: &Params, at: &At) -> Result<()> {
@@ -1246,7 +1302,7 @@ impl Parser<'_> {
                     None => None,
                 };
                 let has_normals = normals.is_some();
-                let material = self.shape_material();
+                let material = self.shape_material()?;
                 self.out.inline_meshes.push(InlineMesh {
                     origin: at.to_string(),
                     positions,
@@ -1269,7 +1325,7 @@ impl Parser<'_> {
                         )?;
                     }
                 }
-                let material = self.shape_material();
+                let material = self.shape_material()?;
                 self.out.meshes.push(MeshDescription {
                     obj: None,
                     ply: Some(self.resolve(&file).to_string_lossy().into_owned()),
@@ -1299,7 +1355,7 @@ impl Parser<'_> {
                         format!("a partial {kind} (zmin, zmax, phimax, innerradius): the whole {kind} used"),
                     )?;
                 }
-                let material = self.shape_material();
+                let material = self.shape_material()?;
                 let (shape, matrix, center, r) = if kind == "sphere" {
                     (ShapeKind::Sphere, ctm, Some([0.0; 3]), Some(radius as f32))
                 } else {
@@ -1465,6 +1521,80 @@ mod tests {
 
     /// Transforms compose as pbrt's do (each new one applied first to points), and
     /// AttributeBegin/End restore them; named coordinate systems.
+    #[test]
+    /// Instances are their object's shapes placed by the instance's transform after the
+    /// definition's: the same triangles (to f32 rounding) as the shapes written out in place,
+    /// mirrored instances included; an instance may come before its definition.
+    fn objects_and_instances() {
+        let object = "Translate 0 0 1
+                Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"integer indices\" [0 1 2]
+                Shape \"trianglemesh\" \"point3 P\" [0 0 0 0 1 0 1 0 0] \"normal N\" [0 0 1 0 0 1 0 0 1]
+                Shape \"sphere\" \"float radius\" 0.25";
+        let placements = ["Translate 5 0 0", "Rotate 30 0 1 0", "Scale -1 1 1"];
+        let instanced = format!(
+            "WorldBegin
+            AttributeBegin {} ObjectInstance \"thing\" AttributeEnd
+            ObjectBegin \"thing\" {object} ObjectEnd
+            AttributeBegin {} ObjectInstance \"thing\" AttributeEnd
+            AttributeBegin {} ObjectInstance \"thing\" AttributeEnd",
+            placements[0], placements[1], placements[2]
+        );
+        let direct: String = std::iter::once("WorldBegin".to_string())
+            .chain(placements.iter().map(|p| format!("AttributeBegin {p} {object} AttributeEnd")))
+            .collect::<Vec<_>>()
+            .join("\n");
+        let triangles = |text: &str| {
+            let scene =
+                crate::scene::Scene::parse_pbrt(text, Path::new("/nowhere/s.pbrt"), &ImportOptions::default()).unwrap();
+            let mut t: Vec<([f32; 9], [f32; 3])> = scene
+                .triangles
+                .iter()
+                .enumerate()
+                .map(|(i, t)| {
+                    let n = scene.attributes.normals.get(i).map_or([0.0; 3], |c| c[0].to_array());
+                    (t.map(|p| p.to_array()).concat().try_into().unwrap(), n)
+                })
+                .collect();
+            t.sort_by(|a, b| {
+                a.0.iter()
+                    .zip(&b.0)
+                    .map(|(x, y)| x.total_cmp(y))
+                    .find(|o| o.is_ne())
+                    .unwrap_or(std::cmp::Ordering::Equal)
+            });
+            t
+        };
+        let (a, b) = (triangles(&instanced), triangles(&direct));
+        assert_eq!(a.len(), b.len());
+        assert!(a.len() > 3 * 2 + 3 * 1000, "the spheres too: {}", a.len());
+        for (x, y) in a.iter().zip(&b) {
+            let far = x.0.iter().zip(&y.0).chain(x.1.iter().zip(&y.1)).any(|(p, q)| (p - q).abs() > 1e-5);
+            assert!(!far, "{x:?} vs {y:?}");
+        }
+        // Without instances, an object's shapes are not in the scene.
+        let d = ok("WorldBegin ObjectBegin \"a\" Shape \"sphere\" ObjectEnd Shape \"disk\"");
+        assert_eq!(d.shapes.len(), 1);
+        // Mistakes.
+        for (text, want) in [
+            ("WorldBegin ObjectBegin \"a\" ObjectBegin \"b\"", "inside the definition of \"a\""),
+            ("WorldBegin ObjectEnd", "ObjectEnd without an ObjectBegin"),
+            ("WorldBegin ObjectBegin \"a\" Shape \"sphere\"", "without an ObjectEnd"),
+            ("WorldBegin ObjectBegin \"a\" ObjectInstance \"a\" ObjectEnd", "inside an object's definition"),
+            ("WorldBegin Shape \"sphere\" ObjectInstance \"nope\"", "no such object"),
+        ] {
+            assert!(message(read(text, true)).contains(want), "{text}: {}", message(read(text, true)));
+        }
+        // Area lights in an object do not emit (as in pbrt-v4), with a warning.
+        let r = read(
+            "WorldBegin ObjectBegin \"lamp\" AreaLightSource \"diffuse\" \"rgb L\" [1 1 1] Shape \"sphere\" ObjectEnd
+             ObjectInstance \"lamp\"",
+            false,
+        )
+        .unwrap();
+        assert!(r.warnings.iter().any(|w| w.contains("instances do not emit")), "{:?}", r.warnings);
+        assert!(r.description.materials.values().all(|m| m.emission == [0.0; 3]));
+    }
+
     #[test]
     fn transforms_and_attributes() {
         let d = ok("WorldBegin
