@@ -455,6 +455,22 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
 
     let folder = path.parent().unwrap_or(Path::new("."));
     let mut sources = Vec::new();
+    // A file placed more than once (instancing) is read once: its triangles as read, before
+    // any placement, are kept and copied.
+    type MeshKey = (PathBuf, bool, Option<String>, bool);
+    let key = |m: &super::description::MeshDescription| -> MeshKey {
+        (
+            folder.join(m.obj.as_ref().or(m.ply.as_ref()).map_or("", String::as_str)),
+            m.ply.is_some(),
+            m.material.clone(),
+            m.reverse_winding,
+        )
+    };
+    let mut uses: HashMap<MeshKey, usize> = HashMap::new();
+    for mesh in &d.meshes {
+        *uses.entry(key(mesh)).or_default() += 1;
+    }
+    let mut read_before: HashMap<MeshKey, Geometry> = HashMap::new();
     for mesh in &d.meshes {
         let (file, is_ply) = match (&mesh.obj, &mesh.ply) {
             (Some(f), None) => (f, false),
@@ -465,24 +481,16 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
             return Err(invalid(path, "a [[mesh]] has an empty file path"));
         }
         let mesh_path = folder.join(file);
-        sources.push(mesh_path.clone());
-        let override_id = match &mesh.material {
-            Some(name) => Some(
-                *meshes
-                    .by_name
-                    .get(name)
-                    .ok_or_else(|| invalid(path, format!("mesh `{file}`: unknown material `{name}`")))?,
-            ),
-            None => None,
-        };
         let start = meshes.geometry.triangles.len();
-        if is_ply {
-            let material = override_id.ok_or_else(|| {
-                invalid(path, format!("mesh `{file}`: a PLY mesh needs `material = \"...\"` (PLY has no materials)"))
-            })?;
-            load_ply(&mesh_path, material, mesh.reverse_winding, &mut meshes.geometry)?;
+        let mesh_key = key(mesh);
+        if let Some(raw) = read_before.get(&mesh_key) {
+            append_geometry(&mut meshes.geometry, raw).map_err(|e| invalid(path, format!("mesh `{file}`: {e}")))?;
         } else {
-            load_obj(&mesh_path, override_id, mesh.reverse_winding, &mut meshes)?;
+            sources.push(mesh_path.clone());
+            read_mesh(path, mesh, file, &mesh_path, is_ply, &mut meshes)?;
+            if uses.get(&mesh_key).is_some_and(|&n| n > 1) {
+                read_before.insert(mesh_key, copy_geometry(&meshes.geometry, start));
+            }
         }
         if let Some(m) = mesh.matrix {
             transform_since(&mut meshes.geometry, start, m)
@@ -1095,6 +1103,79 @@ fn push_face(g: &mut Geometry, face: &mut Face, material: u32, reverse: bool) ->
     Ok(())
 }
 
+/// Reads a `[[mesh]]`'s file into `meshes` (before its placement).
+fn read_mesh(
+    path: &Path,
+    mesh: &super::description::MeshDescription,
+    file: &str,
+    mesh_path: &Path,
+    is_ply: bool,
+    meshes: &mut Meshes,
+) -> Result<()> {
+    let override_id = match &mesh.material {
+        Some(name) => Some(
+            *meshes
+                .by_name
+                .get(name)
+                .ok_or_else(|| invalid(path, format!("mesh `{file}`: unknown material `{name}`")))?,
+        ),
+        None => None,
+    };
+    if is_ply {
+        let material = override_id.ok_or_else(|| {
+            invalid(path, format!("mesh `{file}`: a PLY mesh needs `material = \"...\"` (PLY has no materials)"))
+        })?;
+        load_ply(mesh_path, material, mesh.reverse_winding, &mut meshes.geometry)
+    } else {
+        load_obj(mesh_path, override_id, mesh.reverse_winding, meshes)
+    }
+}
+
+/// The triangles of `g` from `start` on, with their attributes (findings not copied).
+fn copy_geometry(g: &Geometry, start: usize) -> Geometry {
+    let mut copy = Geometry::default();
+    copy.triangles.extend_from_slice(&g.triangles[start..]);
+    copy.triangle_material.extend_from_slice(&g.triangle_material[start..]);
+    if !g.attributes.normals.is_empty() {
+        copy.attributes.normals.extend_from_slice(g.attributes.normals.get(start..).unwrap_or_default());
+    }
+    if !g.attributes.uvs.is_empty() {
+        copy.attributes.uvs.extend_from_slice(g.attributes.uvs.get(start..).unwrap_or_default());
+    }
+    copy
+}
+
+/// Appends `src`'s triangles to `g`, keeping each attribute list empty or one entry per
+/// triangle; an error past [`MAX_TRIANGLES`].
+fn append_geometry(g: &mut Geometry, src: &Geometry) -> std::result::Result<(), String> {
+    let (start, n) = (g.triangles.len(), src.triangles.len());
+    if start + n > MAX_TRIANGLES {
+        return Err(format!("more than {MAX_TRIANGLES} triangles in the scene"));
+    }
+    g.triangles.extend_from_slice(&src.triangles);
+    g.triangle_material.extend_from_slice(&src.triangle_material);
+    let a = &mut g.attributes;
+    if !src.attributes.normals.is_empty() || !a.normals.is_empty() {
+        a.normals.resize(start, [Vec3A::ZERO; 3]);
+        if src.attributes.normals.is_empty() {
+            a.normals.resize(start + n, [Vec3A::ZERO; 3]);
+        } else {
+            a.normals.extend_from_slice(&src.attributes.normals);
+            a.normals.resize(start + n, [Vec3A::ZERO; 3]);
+        }
+    }
+    if !src.attributes.uvs.is_empty() || !a.uvs.is_empty() {
+        a.uvs.resize(start, Attributes::BARYCENTRIC_UV);
+        if src.attributes.uvs.is_empty() {
+            a.uvs.resize(start + n, Attributes::BARYCENTRIC_UV);
+        } else {
+            a.uvs.extend_from_slice(&src.attributes.uvs);
+            a.uvs.resize(start + n, Attributes::BARYCENTRIC_UV);
+        }
+    }
+    Ok(())
+}
+
 /// The triangles added so far, with their materials and attributes.
 #[derive(Default)]
 pub(crate) struct Geometry {
@@ -1405,6 +1486,40 @@ mod tests {
         vn -0.6 0 0.8\nvn 0.6 0 0.8\n\
         vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
         f 1/1/1 2/2/2 3/3/2 4/4/1\n";
+
+    /// A file placed more than once is read once and copied: the same triangles, normals and
+    /// texture coordinates as two files of the same text, before and after meshes without
+    /// attributes.
+    #[test]
+    fn a_mesh_placed_twice_is_copied_alike() {
+        const BARE: &str = "v 0 0 2\nv 1 0 2\nv 0 1 2\nf 1 2 3\n";
+        let mesh = |file: &str, m: &str| format!("[[mesh]]\nobj = \"{file}\"\nmaterial = \"m\"\nmatrix = {m}\n");
+        let (a, b) = (
+            "[[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]",
+            "[[-2.0, 0.0, 0.0, 1.0], [0.0, 1.0, 0.0, 0.5], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]",
+        );
+        let scene = |second: &str| {
+            let text = format!(
+                "{HEAD}[materials.m]\n\n{}{}{}{}",
+                mesh("bare.obj", a),
+                mesh("quad.obj", a),
+                mesh("bare.obj", b),
+                mesh(second, b)
+            );
+            let dir = folder(
+                &format!("twice-{}", second.len()),
+                &[("quad.obj", QUAD), ("copy.obj", QUAD), ("bare.obj", BARE), ("scene.toml", &text)],
+            );
+            Scene::load(&dir).unwrap()
+        };
+        let (twice, apart) = (scene("quad.obj"), scene("copy.obj"));
+        assert_eq!(twice.triangles.len(), 2 + 2 * 2);
+        assert_eq!(twice.triangles, apart.triangles);
+        assert_eq!(twice.attributes.normals, apart.attributes.normals);
+        assert_eq!(twice.attributes.uvs, apart.attributes.uvs);
+        assert_eq!(twice.attributes.normals.len(), twice.triangles.len());
+        assert_eq!(twice.triangles[4][0].x, -2.0 * twice.triangles[1][0].x + 1.0, "placed by its own matrix");
+    }
 
     #[test]
     fn obj_normals_and_texture_coordinates_reach_the_interaction() {

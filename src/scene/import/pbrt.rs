@@ -1521,10 +1521,10 @@ mod tests {
 
     /// Transforms compose as pbrt's do (each new one applied first to points), and
     /// AttributeBegin/End restore them; named coordinate systems.
-    #[test]
     /// Instances are their object's shapes placed by the instance's transform after the
     /// definition's: the same triangles (to f32 rounding) as the shapes written out in place,
     /// mirrored instances included; an instance may come before its definition.
+    #[test]
     fn objects_and_instances() {
         let object = "Translate 0 0 1
                 Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"integer indices\" [0 1 2]
