@@ -14,7 +14,9 @@ use super::super::description::{
     MaskingDescription, MaterialDescription, MaterialKind, MeshDescription, RenderDescription, RotateDescription,
     SceneDescription, ShapeDescription, ShapeKind, TextureDescription, TextureKind, WrapDescription,
 };
-use super::{At, ImportOptions, Imported, empty_description, syntax, to_rows, unsupported};
+use super::{
+    At, ImportOptions, Imported, MAX_INSTANCED_TRIANGLES, Prototype, empty_description, syntax, to_rows, unsupported,
+};
 use crate::error::{Error, Result};
 use glam::{DMat4, DVec3, DVec4};
 use std::collections::HashMap;
@@ -98,7 +100,15 @@ pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result
         files: vec![path.to_path_buf()],
     };
     let root = reader.read_document(path, text)?;
-    let mut t = Translator { reader: &mut reader, ids: HashMap::new(), out: empty_description(), count: 0 };
+    let mut t = Translator {
+        reader: &mut reader,
+        ids: HashMap::new(),
+        out: empty_description(),
+        count: 0,
+        groups: HashMap::new(),
+        in_group: false,
+        budget: MAX_INSTANCED_TRIANGLES,
+    };
     t.translate(&root)?;
     let description = t.out;
     Ok(Imported { description, warnings: reader.warnings, sources: reader.files })
@@ -481,6 +491,11 @@ struct Translator<'r, 'o> {
     out: SceneDescription,
     /// Names handed out for materials and textures.
     count: usize,
+    /// `shapegroup`s by id; whether one is being read; inline triangles instancing may still
+    /// copy.
+    groups: HashMap<String, Prototype>,
+    in_group: bool,
+    budget: usize,
 }
 
 /// A BSDF as a material, before a shape's emitter is added.
@@ -906,7 +921,72 @@ impl Translator<'_, '_> {
     }
 
     /// A shape: its geometry as a mesh or canonical shape, its material with its emitter.
+    /// A `shapegroup`: its shapes, kept for `instance`s and not rendered themselves.
+    fn shapegroup(&mut self, g: &Obj) -> Result<Prototype> {
+        self.check_params(g, &[])?;
+        if self.in_group {
+            return Err(syntax(&g.at, "a shapegroup inside a shapegroup (Mitsuba does not nest instancing)"));
+        }
+        let mark = Prototype::mark(&self.out);
+        self.in_group = true;
+        let read = g.children.iter().try_for_each(|child| {
+            let o = match child {
+                Child::Obj(o) => o.clone(),
+                Child::Ref(id, at) => self.resolve_ref(id, at)?.clone(),
+            };
+            if o.tag == "shape" {
+                self.shape(&o)
+            } else {
+                self.unsupported(&o.at, format!("a <{}> inside a shapegroup is not supported: ignored", o.tag))
+            }
+        });
+        self.in_group = false;
+        read?;
+        Ok(Prototype::capture(&mut self.out, mark))
+    }
+
+    /// An `instance`: its shapegroup's shapes (a `<ref>` to it, or one inside) placed by
+    /// `to_world` after their own transforms.
+    fn instance(&mut self, s: &Obj) -> Result<()> {
+        self.check_params(s, &["to_world"])?;
+        if self.in_group {
+            return Err(syntax(&s.at, "an instance inside a shapegroup (Mitsuba does not nest instancing)"));
+        }
+        let to_world = self.transform(s, "to_world")?;
+        let group = match s.children.as_slice() {
+            [Child::Ref(id, at)] => match self.groups.get(id) {
+                Some(g) => g.clone(),
+                None => {
+                    let what = self.resolve_ref(id, at)?;
+                    return Err(syntax(
+                        at,
+                        format!("<ref id=\"{id}\"> in an instance names a <{}>, not a shapegroup", what.tag),
+                    ));
+                }
+            },
+            [Child::Obj(g)] if g.tag == "shape" && g.plugin == "shapegroup" => self.shapegroup(g)?,
+            _ => return Err(syntax(&s.at, "an instance holds one shapegroup (or a <ref> to one)")),
+        };
+        group.instantiate(to_world, &mut self.out, &mut self.budget).map_err(|e| syntax(&s.at, e))
+    }
+
     fn shape(&mut self, s: &Obj) -> Result<()> {
+        match s.plugin.as_str() {
+            "shapegroup" => {
+                let group = self.shapegroup(s)?;
+                match &s.id {
+                    Some(id) => {
+                        self.groups.insert(id.clone(), group);
+                    }
+                    None => {
+                        self.unsupported(&s.at, "a shapegroup without an id cannot be instanced: ignored".into())?
+                    }
+                }
+                return Ok(());
+            }
+            "instance" => return self.instance(s),
+            _ => {}
+        }
         let mut bsdf = None;
         let mut emission = None;
         for child in &s.children {
@@ -916,6 +996,10 @@ impl Translator<'_, '_> {
             };
             match o.tag.as_str() {
                 "bsdf" => bsdf = Some(self.bsdf(&o, 0)?),
+                "emitter" if o.plugin == "area" && self.in_group => self.unsupported(
+                    &o.at,
+                    "an area emitter in a shapegroup (Mitsuba 3 does not instance emitters): ignored".into(),
+                )?,
                 "emitter" if o.plugin == "area" => {
                     self.check_params(&o, &["radiance"])?;
                     emission = Some(self.constant_colour(&o, "radiance", [1.0; 3])?);
@@ -1380,6 +1464,66 @@ mod tests {
         let r = t[1].uv_transform.unwrap();
         assert!((r[0][1] + 1.0).abs() < 1e-6 && (r[1][0] - 1.0).abs() < 1e-6, "{r:?}");
         assert_eq!(t[1].scale, Some([2.0, 2.0]));
+    }
+
+    /// An instance is its shapegroup's shapes placed by its `to_world` after their own: the
+    /// same triangles (to f32 rounding) as the shapes written out in place, mirrored
+    /// instances included; the group alone renders nothing.
+    #[test]
+    fn shapegroups_and_instances() {
+        let shapes = "<shape type=\"rectangle\"><transform name=\"to_world\"><translate z=\"1\"/></transform></shape>
+            <shape type=\"sphere\"><float name=\"radius\" value=\"0.25\"/><bsdf type=\"conductor\"/></shape>";
+        let placements = ["<translate x=\"5\"/>", "<rotate y=\"1\" angle=\"30\"/>", "<scale x=\"-1\"/>"];
+        let instanced: String = std::iter::once(format!("<shape type=\"shapegroup\" id=\"g\">{shapes}</shape>"))
+            .chain(placements.iter().map(|p| {
+                format!("<shape type=\"instance\"><ref id=\"g\"/><transform name=\"to_world\">{p}</transform></shape>")
+            }))
+            .collect();
+        let placed = |p: &str| {
+            // The same shapes with the placement after their own transform.
+            shapes
+                .replace("<translate z=\"1\"/></transform>", &format!("<translate z=\"1\"/>{p}</transform>"))
+                .replace("<bsdf", &format!("<transform name=\"to_world\">{p}</transform><bsdf"))
+        };
+        let direct: String = placements.iter().map(|p| placed(p)).collect();
+        let triangles = |body: &str| {
+            let text = format!("<scene version=\"3.0.0\">{body}</scene>");
+            let scene =
+                crate::scene::Scene::parse_mitsuba(&text, Path::new("/nowhere/s.xml"), &ImportOptions::default())
+                    .unwrap();
+            let mut t: Vec<[f32; 9]> =
+                scene.triangles.iter().map(|t| t.map(|p| p.to_array()).concat().try_into().unwrap()).collect();
+            t.sort_by(|a, b| {
+                a.iter().zip(b).map(|(x, y)| x.total_cmp(y)).find(|o| o.is_ne()).unwrap_or(std::cmp::Ordering::Equal)
+            });
+            (t, scene.materials.len())
+        };
+        let ((a, _), (b, _)) = (triangles(&instanced), triangles(&direct));
+        assert_eq!(a.len(), b.len());
+        assert!(a.len() > 3 * (2 + 1000), "{}", a.len());
+        for (x, y) in a.iter().zip(&b) {
+            assert!(x.iter().zip(y).all(|(p, q)| (p - q).abs() <= 1e-5), "{x:?} vs {y:?}");
+        }
+        let d = ok(&format!("<shape type=\"shapegroup\" id=\"g\">{shapes}</shape><shape type=\"cube\"/>"));
+        assert_eq!(d.shapes.len(), 1, "a group is not rendered by itself");
+        for (body, want) in [
+            ("<shape type=\"instance\"><ref id=\"nope\"/></shape>", "no object has that id"),
+            ("<bsdf type=\"diffuse\" id=\"b\"/><shape type=\"instance\"><ref id=\"b\"/></shape>", "not a shapegroup"),
+            ("<shape type=\"instance\"/>", "holds one shapegroup"),
+            ("<shape type=\"shapegroup\" id=\"g\"><shape type=\"shapegroup\"/></shape>", "inside a shapegroup"),
+        ] {
+            let e = message(read(body, &[], false));
+            assert!(e.contains(want), "{body}: {e}");
+        }
+        let r = read(
+            "<shape type=\"shapegroup\" id=\"g\"><shape type=\"sphere\"><emitter type=\"area\"/></shape></shape>
+             <shape type=\"instance\"><ref id=\"g\"/></shape>",
+            &[],
+            false,
+        )
+        .unwrap();
+        assert!(r.warnings.iter().any(|w| w.contains("does not instance emitters")), "{:?}", r.warnings);
+        assert!(r.description.materials.values().all(|m| m.emission == [0.0; 3]));
     }
 
     #[test]
