@@ -282,6 +282,11 @@ pub struct TextureDescription {
     /// Map texture coordinates before reading: `u' = m[0]·(u, v, 1)`, `v' = m[1]·(u, v, 1)`
     /// (Mitsuba's `to_uv`).
     pub uv_transform: Option<[[f32; 3]; 2]>,
+    /// Multiplies the texture's values per channel (pbrt's `scale` textures and imagemaps'
+    /// `scale`).
+    pub factor: Option<[f32; 3]>,
+    /// Reads `1 − value` (after `factor`), at least 0 (pbrt's `invert`).
+    pub invert: Option<bool>,
 }
 
 impl TextureDescription {
@@ -299,6 +304,8 @@ impl TextureDescription {
             scale: None,
             v_from_top: None,
             uv_transform: None,
+            factor: None,
+            invert: None,
         }
     }
 }

@@ -325,6 +325,22 @@ fn textures_from(path: &Path, d: &SceneDescription) -> Result<Textures> {
                 Texture::Bitmap(bitmap)
             }
         };
+        let texture = match (t.factor, t.invert) {
+            (None, None | Some(false)) => texture,
+            (factor, invert) => {
+                let f = colour("factor", factor, 1.0)?;
+                let invert = invert.unwrap_or(false);
+                let apply = |v: Vec3A| if invert { (Vec3A::ONE - f * v).max(Vec3A::ZERO) } else { f * v };
+                match texture {
+                    Texture::Bitmap(mut b) => {
+                        b.texels.iter_mut().for_each(|t| *t = apply(*t));
+                        Texture::Bitmap(b)
+                    }
+                    Texture::Checkerboard { a, b, scale } => Texture::Checkerboard { a: apply(a), b: apply(b), scale },
+                    Texture::Constant(c) => Texture::Constant(apply(c)),
+                }
+            }
+        };
         let map = match t.uv_transform {
             None => None,
             Some(m) if m.iter().flatten().all(|x| x.is_finite()) => {
@@ -1486,6 +1502,23 @@ mod tests {
         vn -0.6 0 0.8\nvn 0.6 0 0.8\n\
         vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
         f 1/1/1 2/2/2 3/3/2 4/4/1\n";
+
+    /// `factor` multiplies a texture's values, `invert` then takes `1 − value` (at least 0).
+    #[test]
+    fn texture_factor_and_invert() {
+        let text = format!(
+            "{HEAD}[textures.c]\ntype = \"checkerboard\"\ncolor0 = [0.5, 0.5, 0.5]\ncolor1 = [1.0, 1.0, 1.0]\n\
+             factor = [0.5, 1.0, 4.0]\ninvert = true\n\n[textures.d]\ntype = \"checkerboard\"\nfactor = [2.0, 2.0, 2.0]\n\n\
+             [materials.m]\n\n[[shape]]\ntype = \"rectangle\"\nmaterial = \"m\"\n"
+        );
+        let scene = Scene::parse(&text, Path::new("f/scene.toml")).unwrap();
+        let Texture::Checkerboard { a, b, .. } = scene.textures[0] else { panic!() };
+        assert_eq!((a, b), (Vec3A::new(0.75, 0.5, 0.0), Vec3A::new(0.5, 0.0, 0.0)));
+        let Texture::Checkerboard { a, b, .. } = scene.textures[1] else { panic!() };
+        assert_eq!((a, b), (Vec3A::splat(0.8), Vec3A::splat(0.4)), "Mitsuba's defaults doubled");
+        let bad = text.replace("factor = [2.0, 2.0, 2.0]", "factor = [-1.0, 2.0, 2.0]");
+        assert!(Scene::parse(&bad, Path::new("f/scene.toml")).unwrap_err().to_string().contains("`factor`"));
+    }
 
     /// A file placed more than once is read once and copied: the same triangles, normals and
     /// texture coordinates as two files of the same text, before and after meshes without

@@ -683,6 +683,8 @@ impl Translator<'_, '_> {
                     scale: None,
                     v_from_top: Some(true),
                     uv_transform: (to_uv != DMat4::IDENTITY).then(|| uv_rows(to_uv)),
+                    factor: None,
+                    invert: None,
                 }
             }
             "checkerboard" => {
@@ -710,6 +712,8 @@ impl Translator<'_, '_> {
                     scale: Some(scale),
                     v_from_top: None,
                     uv_transform: map,
+                    factor: None,
+                    invert: None,
                 }
             }
             other => {

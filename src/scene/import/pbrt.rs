@@ -1112,9 +1112,8 @@ impl Parser<'_> {
                         false
                     }
                 };
-                if params.float("scale", 1.0, at)? != 1.0 || params.boolean("invert", false, at)? {
-                    self.unsupported(at, "an imagemap's scale and invert are not supported: ignored".into())?;
-                }
+                let factor = params.float("scale", 1.0, at)? as f32;
+                let invert = params.boolean("invert", false, at)?;
                 let uv_transform = self.mapping(params, at)?;
                 params.get("maxanisotropy");
                 TextureDescription {
@@ -1128,6 +1127,8 @@ impl Parser<'_> {
                     scale: None,
                     v_from_top: None,
                     uv_transform,
+                    factor: (factor != 1.0).then_some([factor; 3]),
+                    invert: invert.then_some(true),
                 }
             }
             "checkerboard" => {
@@ -1154,24 +1155,51 @@ impl Parser<'_> {
                     scale: Some([us.abs().max(1e-6) as f32, vs.abs().max(1e-6) as f32]),
                     v_from_top: None,
                     uv_transform: None,
+                    factor: None,
+                    invert: None,
                 }
             }
-            "scale" | "constant" => {
-                // A constant (or a constant scaled): folded into one colour.
-                let a = self.colour(params, if kind == "scale" { "tex" } else { "value" }, [1.0; 3], at)?;
-                let s = if kind == "scale" { params.float("scale", 1.0, at)? as f32 } else { 1.0 };
-                match a {
-                    Colour::Constant(c) => {
-                        let c = c.map(|v| v * s);
-                        TextureDescription::constant(c)
+            "constant" => match self.colour(params, "value", [1.0; 3], at)? {
+                Colour::Constant(c) => TextureDescription::constant(c),
+                Colour::Texture(t) => {
+                    self.textures.insert((float, name), t);
+                    self.check_unused(&format!("Texture \"{kind}\""), params, at)?;
+                    return Ok(());
+                }
+            },
+            "scale" => {
+                // `tex` times `scale`: two constants fold into one colour; a texture times a
+                // constant is that texture with a factor.
+                let a = self.operand(params, "tex", float, at)?;
+                let b = self.operand(params, "scale", float, at)?;
+                match (a, b) {
+                    (Colour::Constant(a), Colour::Constant(b)) => {
+                        TextureDescription::constant([a[0] * b[0], a[1] * b[1], a[2] * b[2]])
                     }
-                    Colour::Texture(t) => {
-                        if s != 1.0 {
+                    (Colour::Texture(t), Colour::Constant(c)) | (Colour::Constant(c), Colour::Texture(t)) => {
+                        let mut scaled = self
+                            .out
+                            .textures
+                            .get(&t)
+                            .cloned()
+                            .unwrap_or_else(|| TextureDescription::constant([0.5; 3]));
+                        let old = scaled.factor.unwrap_or([1.0; 3]);
+                        scaled.factor = Some([old[0] * c[0], old[1] * c[1], old[2] * c[2]]);
+                        if scaled.invert == Some(true) {
                             self.unsupported(
                                 at,
-                                format!("Texture \"{name}\": a scaled image texture is not supported: unscaled"),
+                                format!(
+                                    "Texture \"{name}\": an inverted imagemap scaled again: scaled before inverting"
+                                ),
                             )?;
                         }
+                        scaled
+                    }
+                    (Colour::Texture(t), Colour::Texture(_)) => {
+                        self.unsupported(
+                            at,
+                            format!("Texture \"{name}\": the product of two textures is not supported: the first used"),
+                        )?;
                         self.textures.insert((float, name), t);
                         self.check_unused(&format!("Texture \"{kind}\""), params, at)?;
                         return Ok(());
@@ -1190,6 +1218,20 @@ impl Parser<'_> {
         self.out.textures.insert(key.clone(), description);
         self.textures.insert((float, name), key);
         Ok(())
+    }
+
+    /// An operand of a texture of class `float` (or spectrum): a texture of the same class by
+    /// name, or a value.
+    fn operand(&mut self, params: &Params, name: &str, float: bool, at: &At) -> Result<Colour> {
+        match params.get(name).map(|p| (p.kind.clone(), p.values.clone())) {
+            Some((k, Values::Texts(v))) if k == "texture" && v.len() == 1 => {
+                match self.textures.get(&(float, v[0].clone())) {
+                    Some(t) => Ok(Colour::Texture(t.clone())),
+                    None => Err(syntax(at, format!("\"texture {name}\": no such texture \"{}\" (before it)", v[0]))),
+                }
+            }
+            _ => self.colour(params, name, [1.0; 3], at),
+        }
     }
 
     /// pbrt's `uv` mapping with its scale and shift (`s = su·u + du`, `t = sv·v + dv`), as a
@@ -1629,6 +1671,27 @@ mod tests {
         assert_eq!((r.spp, r.max_depth), (Some(32), Some(4)));
         let d = ok("WorldBegin");
         assert_eq!((d.camera.width, d.camera.height, d.camera.fov_y), (1280, 720, 90.0), "pbrt's defaults");
+    }
+
+    #[test]
+    fn scaled_and_inverted_textures() {
+        let d = ok("WorldBegin
+            Texture \"img\" \"spectrum\" \"imagemap\" \"string filename\" \"a.png\" \"float scale\" 0.5 \"bool invert\" true
+            Texture \"plain\" \"spectrum\" \"imagemap\" \"string filename\" \"b.png\"
+            Texture \"dim\" \"spectrum\" \"scale\" \"texture tex\" \"plain\" \"rgb scale\" [0.25 0.5 1]
+            Texture \"dimmer\" \"spectrum\" \"scale\" \"float tex\" 0.5 \"texture scale\" \"dim\"
+            Texture \"grey\" \"spectrum\" \"scale\" \"rgb tex\" [0.2 0.4 0.6] \"float scale\" 0.5
+            Texture \"r\" \"float\" \"imagemap\" \"string filename\" \"r.png\"
+            Texture \"r2\" \"float\" \"scale\" \"texture tex\" \"r\" \"float scale\" 2");
+        let t = |file: &str, factor: Option<[f32; 3]>| {
+            d.textures.values().any(|t| t.file.as_deref().is_some_and(|f| f.ends_with(file)) && t.factor == factor)
+        };
+        assert!(d.textures.values().any(|t| t.factor == Some([0.5; 3]) && t.invert == Some(true)));
+        assert!(t("b.png", None) && t("b.png", Some([0.25, 0.5, 1.0])) && t("b.png", Some([0.125, 0.25, 0.5])));
+        assert!(t("r.png", Some([2.0; 3])), "a float texture scaled");
+        assert!(d.textures.values().any(|t| t.color0 == Some([0.1, 0.2, 0.3])), "constants fold");
+        let e = message(read("WorldBegin Texture \"s\" \"float\" \"scale\" \"texture tex\" \"nope\"", false));
+        assert!(e.contains("no such texture \"nope\""), "{e}");
     }
 
     #[test]
