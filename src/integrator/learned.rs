@@ -416,7 +416,7 @@ impl LearnedZvidpt {
         let mut rng = SampleStream::in_domain(Domain::PixelSetup, seed, index, 1);
         let mut sum = 0.0;
         for _ in 0..SETUP_RAYS {
-            let ray = ctx.scene.camera.ray(pixel.as_vec2() + rng.next_2d());
+            let ray = ctx.scene.camera.ray(ctx.scene.camera.film_point(pixel, rng.next_2d()));
             scratch.rays += 1;
             if let Some(hit) = ctx.accel.intersect(&ray) {
                 let si = ctx.scene.interaction(&ray, &hit);
@@ -441,7 +441,7 @@ impl LearnedZvidpt {
         scratch: &mut Scratch,
         deposits: Option<&mut Deposits>,
     ) -> Vec3A {
-        let ray = ctx.scene.camera.ray(pixel.as_vec2() + rng.pixel_2d());
+        let ray = ctx.scene.camera.ray(ctx.scene.camera.film_point(pixel, rng.pixel_2d()));
         scratch.rays += 1;
         let Some(hit) = ctx.accel.intersect(&ray) else {
             return ctx.scene.environment(ray.dir);

@@ -132,7 +132,7 @@ pub(crate) fn trace_path<A: Accel, const NEE_ONLY: bool, const BOUNDED: bool>(
     mis: Mis,
     mut sample_direction: impl FnMut(&SurfaceInteraction, &Frame, Vec3A, &mut SampleStream) -> Option<Scatter>,
 ) -> Vec3A {
-    let film = pixel.as_vec2() + rng.pixel_2d();
+    let film = ctx.scene.camera.film_point(pixel, rng.pixel_2d());
     let ray = ctx.scene.camera.ray(film);
     scratch.rays += 1;
     // Paths of at most `max_depth` segments: the camera's is the first.

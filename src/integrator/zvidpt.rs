@@ -97,7 +97,7 @@ impl Integrator for Zvidpt {
         let mut rng = SampleStream::in_domain(Domain::PixelSetup, seed, index, 0);
         let mut cdf = [0.0f32; MAX_SUBPIXELS];
         for (j, v) in cdf.iter_mut().enumerate().take(n) {
-            let film = pixel.as_vec2() + subpixel_point(shape, j, rng.next_2d());
+            let film = ctx.scene.camera.film_point(pixel, subpixel_point(shape, j, rng.next_2d()));
             let ray = ctx.scene.camera.ray(film);
             scratch.rays += 1;
             *v = match ctx.accel.intersect(&ray) {
@@ -130,7 +130,7 @@ impl Integrator for Zvidpt {
         // the pixel's stratification carries over to its subpixels.
         let u = rng.pixel_2d();
         let (j, pj, ux) = pick_cell(cdf, u.x);
-        let film = pixel.as_vec2() + subpixel_point(shape, j, Vec2::new(ux, u.y));
+        let film = ctx.scene.camera.film_point(pixel, subpixel_point(shape, j, Vec2::new(ux, u.y)));
         let ray = ctx.scene.camera.ray(film);
         scratch.rays += 1;
         let weight = Vec3A::splat(1.0 / (n as f32 * pj));

@@ -40,7 +40,8 @@ pub fn first_hit_aovs<A: Accel>(scene: &Scene, accel: &A, seed: u64) -> Aovs {
                     let (mut albedo, mut normal, mut depth, mut hits) = (Vec3A::ZERO, Vec3A::ZERO, 0.0f64, 0u32);
                     for i in 0..GRID * GRID {
                         let cell = glam::Vec2::new((i % GRID) as f32, (i / GRID) as f32);
-                        let film = glam::Vec2::new(x as f32, y as f32) + (cell + rng.next_2d()) / GRID as f32;
+                        let film =
+                            scene.camera.film_point(glam::UVec2::new(x, y), (cell + rng.next_2d()) / GRID as f32);
                         let ray = scene.camera.ray(film);
                         if let Some(hit) = accel.intersect(&ray) {
                             let si = scene.interaction(&ray, &hit);

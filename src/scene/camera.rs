@@ -1,4 +1,5 @@
-use crate::geometry::{Ray, Vec2, Vec3A};
+use super::filter::PixelFilter;
+use crate::geometry::{Ray, UVec2, Vec2, Vec3A};
 
 /// A pinhole camera. Pixel `(i, j)` (row `j` from the top) covers film `[i,i+1]×[j,j+1]`; the
 /// ray through film point `(u, v)` follows SCENES.md exactly.
@@ -15,6 +16,8 @@ pub struct Camera {
     /// image is `width`×`height` pixels of it.
     full: Vec2,
     offset: Vec2,
+    /// How a pixel's film points spread around it (the one-pixel box unless set).
+    pub filter: PixelFilter,
 }
 
 impl Camera {
@@ -35,6 +38,7 @@ impl Camera {
             height,
             full: Vec2::new(width as f32, height as f32),
             offset: Vec2::ZERO,
+            filter: PixelFilter::default(),
         })
     }
 
@@ -69,6 +73,14 @@ impl Camera {
     pub fn with_resolution(&self, width: u32, height: u32) -> Self {
         let scale = Vec2::new(width as f32, height as f32) / self.size();
         Self { width, height, full: self.full * scale, offset: self.offset * scale, ..self.clone() }
+    }
+
+    /// The film point of pixel `pixel` for `u` in `[0, 1)²`, by the pixel filter (the plain
+    /// `pixel + u` for the one-pixel box).
+    #[inline]
+    #[must_use]
+    pub fn film_point(&self, pixel: UVec2, u: Vec2) -> Vec2 {
+        self.filter.film_point(pixel, UVec2::new(self.width, self.height), u)
     }
 
     /// The primary ray through film point `film` (in pixels).

@@ -157,6 +157,29 @@ pub struct CameraDescription {
     /// Mitsuba scenes have).
     #[serde(default)]
     pub mirror: bool,
+    /// The pixel reconstruction filter (default: the one-pixel box).
+    pub filter: Option<PixelFilterDescription>,
+}
+
+/// A pixel reconstruction filter (see [`crate::scene::filter`]): `box` (`radius` ½),
+/// `gaussian` (`stddev` 0.5, `radius` 4·`stddev`: Mitsuba 3's default filter) or `tent`
+/// (`radius` 1); `radius` per axis, in pixels.
+#[derive(Debug, Deserialize, Clone, Copy, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PixelFilterDescription {
+    #[serde(rename = "type")]
+    pub kind: PixelFilterKind,
+    pub stddev: Option<f32>,
+    pub radius: Option<[f32; 2]>,
+}
+
+/// The kinds of pixel filter.
+#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum PixelFilterKind {
+    Box,
+    Gaussian,
+    Tent,
 }
 
 fn default_up() -> [f32; 3] {

@@ -4,6 +4,7 @@ use super::description::{
     DistributionDescription, LightKind, MapLayout, MaskingDescription, MaterialDescription, SceneDescription,
     ShapeDescription, ShapeKind,
 };
+use super::filter::{FilterShape, PixelFilter};
 use super::import::{Format, ImportOptions};
 use super::{Attributes, Camera, Lights, Material, Scene, TextureSlots};
 use crate::geometry::{Vec2, Vec3A};
@@ -358,6 +359,30 @@ fn textures_from(path: &Path, d: &SceneDescription) -> Result<Textures> {
     Ok((textures, ids, sources, maps))
 }
 
+/// A filter description's shape, checked.
+fn filter_shape(f: &super::description::PixelFilterDescription) -> std::result::Result<FilterShape, String> {
+    use super::description::PixelFilterKind as K;
+    if f.stddev.is_some() && f.kind != K::Gaussian {
+        return Err("`stddev` is for the gaussian filter".into());
+    }
+    let stddev = f.stddev.unwrap_or(0.5);
+    let radius = f.radius.unwrap_or(match f.kind {
+        K::Box => [0.5; 2],
+        K::Gaussian => [4.0 * stddev; 2],
+        K::Tent => [1.0; 2],
+    });
+    let shape = match f.kind {
+        K::Box => FilterShape::Box { radius },
+        K::Gaussian => FilterShape::Gaussian { stddev, radius },
+        K::Tent => FilterShape::Tent { radius },
+    };
+    if shape.is_valid() {
+        Ok(shape)
+    } else {
+        Err(format!("radius and stddev must lie in (0, 16] pixels, got {radius:?} and {stddev}"))
+    }
+}
+
 /// The scattering model a material description asks for; keys that do not apply to its type
 /// are errors.
 fn bsdf_from(d: &MaterialDescription) -> std::result::Result<Bsdf, String> {
@@ -450,6 +475,9 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
     }
     let mut camera = Camera::new(vec3(c.eye), vec3(c.look_at), vec3(c.up), c.fov_y, c.width, c.height)
         .ok_or_else(|| invalid(path, "camera: eye equals look_at, or up is parallel to the view direction"))?;
+    if let Some(f) = c.filter {
+        camera.filter = PixelFilter::new(filter_shape(&f).map_err(|m| invalid(path, format!("camera: filter: {m}")))?);
+    }
     if c.mirror {
         camera = camera.mirrored();
     }
@@ -1502,6 +1530,34 @@ mod tests {
         vn -0.6 0 0.8\nvn 0.6 0 0.8\n\
         vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
         f 1/1/1 2/2/2 3/3/2 4/4/1\n";
+
+    /// `[camera] filter`: defaults per type, and its mistakes.
+    #[test]
+    fn camera_filters() {
+        let scene = |filter: &str| {
+            let text = format!(
+                "[camera]\neye = [0.0, 0.0, 3.0]\nlook_at = [0.0, 0.0, 0.0]\nfov_y = 40.0\nwidth = 8\nheight = 8\n\
+                 filter = {filter}\n\n[materials.m]\n\n[[shape]]\ntype = \"rectangle\"\nmaterial = \"m\"\n"
+            );
+            Scene::parse(&text, Path::new("f/scene.toml")).map(|s| s.camera.filter.shape).map_err(|e| e.to_string())
+        };
+        assert_eq!(scene("{ type = \"gaussian\" }"), Ok(FilterShape::Gaussian { stddev: 0.5, radius: [2.0; 2] }));
+        assert_eq!(
+            scene("{ type = \"gaussian\", stddev = 0.25 }"),
+            Ok(FilterShape::Gaussian { stddev: 0.25, radius: [1.0; 2] })
+        );
+        assert_eq!(scene("{ type = \"tent\", radius = [2.0, 1.0] }"), Ok(FilterShape::Tent { radius: [2.0, 1.0] }));
+        assert_eq!(scene("{ type = \"box\" }"), Ok(FilterShape::PIXEL));
+        for (filter, want) in [
+            ("{ type = \"tent\", stddev = 1.0 }", "`stddev` is for the gaussian filter"),
+            ("{ type = \"box\", radius = [0.0, 1.0] }", "must lie in (0, 16]"),
+            ("{ type = \"gaussian\", stddev = 100.0 }", "must lie in (0, 16]"),
+            ("{ type = \"mitchell\" }", "unknown variant"),
+        ] {
+            let e = scene(filter).unwrap_err();
+            assert!(e.contains(want), "{filter}: {e}");
+        }
+    }
 
     /// `factor` multiplies a texture's values, `invert` then takes `1 − value` (at least 0).
     #[test]

@@ -2,6 +2,7 @@
 //! full shading record built once from a backend's preliminary [`Hit`].
 mod camera;
 pub mod description;
+pub mod filter;
 pub mod import;
 mod load;
 pub mod ply;
@@ -508,6 +509,10 @@ impl Scene {
         let c = &self.camera;
         for x in [c.width, c.height] {
             eat(x);
+        }
+        // A filter other than the one-pixel box (older hashes stay valid).
+        if c.filter.shape != filter::FilterShape::PIXEL {
+            format!("{:?}", c.filter.shape).bytes().for_each(|b| eat(u32::from(b)));
         }
         for v in [c.ray(glam::Vec2::ZERO).dir, c.ray(glam::Vec2::new(c.width as f32, c.height as f32)).dir, c.eye] {
             v.to_array().into_iter().for_each(|x| eat(x.to_bits()));

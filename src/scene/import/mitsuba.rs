@@ -11,8 +11,9 @@
 //! what is used instead (`strict`: an error).
 use super::super::description::{
     CameraDescription, DistributionDescription, EnvironmentDescription, FilterDescription, LightDescription,
-    MaskingDescription, MaterialDescription, MaterialKind, MeshDescription, RenderDescription, RotateDescription,
-    SceneDescription, ShapeDescription, ShapeKind, TextureDescription, TextureKind, WrapDescription,
+    MaskingDescription, MaterialDescription, MaterialKind, MeshDescription, PixelFilterDescription, PixelFilterKind,
+    RenderDescription, RotateDescription, SceneDescription, ShapeDescription, ShapeKind, TextureDescription,
+    TextureKind, WrapDescription,
 };
 use super::{
     At, ImportOptions, Imported, MAX_INSTANCED_TRIANGLES, Prototype, empty_description, syntax, to_rows, unsupported,
@@ -569,6 +570,7 @@ impl Translator<'_, '_> {
                 // lens on 36×24 mm film (its field of view across the diagonal).
                 let fov = (36f64.hypot(24.0) / 100.0).atan().to_degrees() * 2.0;
                 self.camera(DMat4::IDENTITY, fov, "diagonal", 768, 576, &scene.at)?;
+                self.out.camera.filter = Some(MITSUBA_FILTER);
             }
         }
         Ok(())
@@ -1215,6 +1217,7 @@ impl Translator<'_, '_> {
         )?;
         let to_world = self.transform(s, "to_world")?;
         let (mut width, mut height, mut crop) = (768i64, 576i64, None);
+        let mut filter = MITSUBA_FILTER;
         for child in &s.children {
             let Child::Obj(o) = child else { continue };
             match o.tag.as_str() {
@@ -1255,12 +1258,8 @@ impl Translator<'_, '_> {
                     for c in &o.children {
                         if let Child::Obj(f) = c
                             && f.tag == "rfilter"
-                            && f.plugin != "box"
                         {
-                            self.unsupported(
-                                &f.at,
-                                format!("<rfilter type=\"{}\">: pixels are box-filtered", f.plugin),
-                            )?;
+                            filter = self.rfilter(f)?;
                         }
                     }
                 }
@@ -1301,7 +1300,33 @@ impl Translator<'_, '_> {
         }
         self.camera(to_world, fov, &axis, width as u32, height as u32, &s.at)?;
         self.out.camera.crop = crop;
+        self.out.camera.filter = Some(filter);
         Ok(())
+    }
+
+    /// A film's reconstruction filter: `box`, `gaussian` (`stddev`), `tent` (`radius`);
+    /// others fall back to Mitsuba's default Gaussian.
+    fn rfilter(&mut self, f: &Obj) -> Result<PixelFilterDescription> {
+        Ok(match f.plugin.as_str() {
+            "box" => {
+                self.check_params(f, &[])?;
+                PixelFilterDescription { kind: PixelFilterKind::Box, stddev: None, radius: None }
+            }
+            "gaussian" => {
+                self.check_params(f, &["stddev"])?;
+                let stddev = self.float(f, "stddev", 0.5)? as f32;
+                PixelFilterDescription { kind: PixelFilterKind::Gaussian, stddev: Some(stddev), radius: None }
+            }
+            "tent" => {
+                self.check_params(f, &["radius"])?;
+                let r = self.float(f, "radius", 1.0)? as f32;
+                PixelFilterDescription { kind: PixelFilterKind::Tent, stddev: None, radius: Some([r; 2]) }
+            }
+            other => {
+                self.unsupported(&f.at, format!("<rfilter type=\"{other}\">: the default gaussian used"))?;
+                MITSUBA_FILTER
+            }
+        })
     }
 
     /// The camera of a Mitsuba sensor: its `to_world` (+z forward, +y up, +x to the image's
@@ -1346,10 +1371,15 @@ impl Translator<'_, '_> {
             height,
             crop: None,
             mirror,
+            filter: None,
         };
         Ok(())
     }
 }
+
+/// Mitsuba 3's default reconstruction filter: a Gaussian of σ 0.5, cut at 2.
+const MITSUBA_FILTER: PixelFilterDescription =
+    PixelFilterDescription { kind: PixelFilterKind::Gaussian, stddev: Some(0.5), radius: None };
 
 #[cfg(test)]
 mod tests {
@@ -1528,6 +1558,32 @@ mod tests {
         .unwrap();
         assert!(r.warnings.iter().any(|w| w.contains("does not instance emitters")), "{:?}", r.warnings);
         assert!(r.description.materials.values().all(|m| m.emission == [0.0; 3]));
+    }
+
+    /// The film's `rfilter`, Mitsuba's default Gaussian without one.
+    #[test]
+    fn reconstruction_filters() {
+        let filter = |film: &str| {
+            let r = read(
+                &format!(
+                    "<sensor type=\"perspective\"><film type=\"hdrfilm\">{film}</film></sensor><shape type=\"cube\"/>"
+                ),
+                &[],
+                false,
+            )
+            .unwrap();
+            (r.description.camera.filter.unwrap(), r.warnings)
+        };
+        let gaussian = PixelFilterDescription { kind: PixelFilterKind::Gaussian, stddev: Some(0.5), radius: None };
+        assert_eq!(filter("").0, gaussian);
+        assert_eq!(ok("<shape type=\"cube\"/>").camera.filter, Some(gaussian), "the default sensor's film");
+        assert_eq!(filter("<rfilter type=\"box\"/>").0.kind, PixelFilterKind::Box);
+        let (f, _) = filter("<rfilter type=\"gaussian\"><float name=\"stddev\" value=\"0.25\"/></rfilter>");
+        assert_eq!(f.stddev, Some(0.25));
+        let (f, _) = filter("<rfilter type=\"tent\"><float name=\"radius\" value=\"2\"/></rfilter>");
+        assert_eq!((f.kind, f.radius), (PixelFilterKind::Tent, Some([2.0; 2])));
+        let (f, warnings) = filter("<rfilter type=\"mitchell\"/>");
+        assert!(f == gaussian && warnings[0].contains("mitchell"), "{warnings:?}");
     }
 
     #[test]

@@ -58,6 +58,7 @@ pub(crate) fn empty_description() -> SceneDescription {
             height: 1,
             crop: None,
             mirror: false,
+            filter: None,
         },
         materials: BTreeMap::new(),
         textures: BTreeMap::new(),

@@ -11,8 +11,8 @@
 //! (`strict`: an error).
 use super::super::description::{
     CameraDescription, EnvironmentDescription, FilterDescription, InlineMesh, LightDescription, MapLayout,
-    MaterialDescription, MaterialKind, MeshDescription, RenderDescription, SceneDescription, ShapeDescription,
-    ShapeKind, TextureDescription, TextureKind, WrapDescription,
+    MaterialDescription, MaterialKind, MeshDescription, PixelFilterDescription, PixelFilterKind, RenderDescription,
+    SceneDescription, ShapeDescription, ShapeKind, TextureDescription, TextureKind, WrapDescription,
 };
 use super::{
     At, ImportOptions, Imported, MAX_INSTANCED_TRIANGLES, Mark, Prototype, empty_description, syntax, to_rows,
@@ -256,6 +256,8 @@ struct Parser<'o> {
     defining: Option<(String, Mark, At)>,
     /// `ObjectInstance`s: the object's name and the transform then.
     instances: Vec<(String, DMat4, At)>,
+    /// The pixel filter (pbrt-v4's default: a Gaussian of σ 0.5, radius 1.5).
+    filter: PixelFilterDescription,
 }
 
 /// Reads the pbrt-v4 scene at `path` (text `text`).
@@ -285,6 +287,7 @@ pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result
         objects: HashMap::new(),
         defining: None,
         instances: Vec::new(),
+        filter: PixelFilterDescription { kind: PixelFilterKind::Gaussian, stddev: Some(0.5), radius: Some([1.5; 2]) },
     };
     p.file(path, text)?;
     p.finish()?;
@@ -663,10 +666,28 @@ impl Parser<'_> {
             }
             "PixelFilter" => {
                 let kind = c.text(d)?;
-                let _ = c.params()?;
-                if kind != "box" {
-                    self.unsupported(at, format!("PixelFilter \"{kind}\": pixels are box-filtered"))?;
-                }
+                let params = c.params()?;
+                let radius = |default: f64| -> Result<Option<[f32; 2]>> {
+                    let (x, y) = (params.float("xradius", default, at)?, params.float("yradius", default, at)?);
+                    Ok(Some([x as f32, y as f32]))
+                };
+                let (kind, stddev, radius) = match kind.as_str() {
+                    "box" => (PixelFilterKind::Box, None, radius(0.5)?),
+                    "gaussian" => {
+                        let sigma = params.float("sigma", 0.5, at)? as f32;
+                        (PixelFilterKind::Gaussian, Some(sigma), radius(1.5)?)
+                    }
+                    "triangle" => (PixelFilterKind::Tent, None, radius(2.0)?),
+                    other => {
+                        for p in &params.list {
+                            p.used.set(true);
+                        }
+                        self.unsupported(at, format!("PixelFilter \"{other}\": pbrt's default gaussian used"))?;
+                        (PixelFilterKind::Gaussian, Some(0.5), Some([1.5; 2]))
+                    }
+                };
+                self.check_unused(&format!("PixelFilter \"{kind:?}\""), &params, at)?;
+                self.filter = PixelFilterDescription { kind, stddev, radius };
             }
             "ColorSpace" | "Accelerator" | "Option" => {
                 if d == "Option" {
@@ -873,6 +894,7 @@ impl Parser<'_> {
             height: h as u32,
             crop: None,
             mirror,
+            filter: Some(self.filter),
         };
         if let Some([x0, x1, y0, y1]) = crop {
             // pbrt: pixels ceil(res·min) up to ceil(res·max).
@@ -1671,6 +1693,28 @@ mod tests {
         assert_eq!((r.spp, r.max_depth), (Some(32), Some(4)));
         let d = ok("WorldBegin");
         assert_eq!((d.camera.width, d.camera.height, d.camera.fov_y), (1280, 720, 90.0), "pbrt's defaults");
+    }
+
+    #[test]
+    fn pixel_filters() {
+        let filter = |f: &str| ok(&format!("{f} WorldBegin Shape \"sphere\"")).camera.filter.unwrap();
+        let gaussian = |s: f32, r: f32| PixelFilterDescription {
+            kind: PixelFilterKind::Gaussian,
+            stddev: Some(s),
+            radius: Some([r; 2]),
+        };
+        assert_eq!(filter(""), gaussian(0.5, 1.5), "pbrt-v4's default");
+        assert_eq!(
+            filter("PixelFilter \"gaussian\" \"float sigma\" 0.25 \"float xradius\" 1 \"float yradius\" 1"),
+            gaussian(0.25, 1.0)
+        );
+        let f = filter("PixelFilter \"box\"");
+        assert_eq!((f.kind, f.radius), (PixelFilterKind::Box, Some([0.5; 2])));
+        let f = filter("PixelFilter \"triangle\" \"float yradius\" 1");
+        assert_eq!((f.kind, f.radius), (PixelFilterKind::Tent, Some([2.0, 1.0])));
+        let r = read("PixelFilter \"mitchell\" \"float B\" 0.3 WorldBegin Shape \"sphere\"", false).unwrap();
+        assert_eq!(r.description.camera.filter, Some(gaussian(0.5, 1.5)));
+        assert!(r.warnings[0].contains("mitchell"), "{:?}", r.warnings);
     }
 
     #[test]
