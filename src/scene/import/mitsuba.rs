@@ -801,6 +801,105 @@ impl Translator<'_, '_> {
                 }
                 return Ok(inner);
             }
+            "bumpmap" | "normalmap" | "mask" => {
+                let what = match b.plugin.as_str() {
+                    "mask" => "its opacity is ignored (opaque)",
+                    _ => "the nested BSDF used without the normal perturbation",
+                };
+                self.unsupported(&b.at, format!("<bsdf type=\"{}\">: {what}", b.plugin))?;
+                let known: &[&str] = match b.plugin.as_str() {
+                    "bumpmap" => &["arbitrary", "scale"],
+                    "normalmap" => &["normalmap"],
+                    _ => &["opacity"],
+                };
+                for (name, _, at) in &b.params {
+                    if !known.contains(&name.as_str()) {
+                        let message =
+                            format!("<bsdf type=\"{}\">: parameter `{name}` is not supported: ignored", b.plugin);
+                        self.reader.unsupported(at, message)?;
+                    }
+                }
+                return match b.children.first() {
+                    Some(c) if depth < 4 => self.child_bsdf(c, depth + 1),
+                    _ => Err(syntax(&b.at, format!("a {} BSDF needs one nested BSDF", b.plugin))),
+                };
+            }
+            "blendbsdf" => {
+                self.check_params(b, &["weight"])?;
+                // (1 − w)·first + w·second: the heavier one stands for the blend.
+                let weight = match b.param("weight") {
+                    Some((_, Value::Float(w), _)) => *w,
+                    _ => 0.5,
+                };
+                self.unsupported(
+                    &b.at,
+                    format!(
+                        "<bsdf type=\"blendbsdf\">: the {} BSDF (weight {weight}) stands for the blend",
+                        if weight > 0.5 { "second" } else { "first" }
+                    ),
+                )?;
+                let pick = usize::from(weight > 0.5);
+                return match b.children.get(pick) {
+                    Some(c) if depth < 4 && b.children.len() == 2 => self.child_bsdf(c, depth + 1),
+                    _ => Err(syntax(&b.at, "a blendbsdf needs two nested BSDFs")),
+                };
+            }
+            "principled" => {
+                self.check_params(
+                    b,
+                    &[
+                        "base_color",
+                        "roughness",
+                        "metallic",
+                        "specular",
+                        "spec_tint",
+                        "anisotropic",
+                        "sheen",
+                        "sheen_tint",
+                        "clearcoat",
+                        "clearcoat_gloss",
+                        "spec_trans",
+                        "eta",
+                        "sample_visible",
+                    ],
+                )?;
+                let (c, t) = self.colour(b, "base_color", [0.5; 3])?;
+                let number = |this: &mut Self, name: &str, default: f64| -> Result<f64> {
+                    match b.param(name) {
+                        Some((_, Value::Float(_), _)) | None => this.float(b, name, default),
+                        Some(_) => Ok(default),
+                    }
+                };
+                let roughness = number(self, "roughness", 0.5)?;
+                let metallic = number(self, "metallic", 0.0)?;
+                let transmission = number(self, "spec_trans", 0.0)?;
+                let alpha = (roughness * roughness).clamp(0.0, 1.0) as f32;
+                m.roughness = Some(alpha);
+                m.distribution = Some(DistributionDescription::Ggx);
+                m.masking = Some(MaskingDescription::Separable);
+                let model = if transmission > 0.5 {
+                    m.kind = MaterialKind::Dielectric;
+                    m.two_sided = None;
+                    m.ior = Some(number(self, "eta", 1.5)? as f32);
+                    "a rough dielectric"
+                } else if metallic > 0.5 {
+                    m.kind = MaterialKind::Conductor;
+                    m.metal = Some("none".into());
+                    m.specular = c;
+                    m.specular_texture = t;
+                    "a rough mirror tinted by base_color"
+                } else {
+                    m.kind = MaterialKind::Plastic;
+                    m.diffuse = c.unwrap_or([0.0; 3]);
+                    m.diffuse_texture = t;
+                    m.ior = Some(1.5);
+                    "a rough plastic of base_color"
+                };
+                self.unsupported(
+                    &b.at,
+                    format!("<bsdf type=\"principled\"> is approximated by {model} (α = roughness²)"),
+                )?;
+            }
             "diffuse" => {
                 self.check_params(b, &["reflectance"])?;
                 let (c, t) = self.colour(b, "reflectance", [0.5; 3])?;
@@ -926,7 +1025,6 @@ impl Translator<'_, '_> {
         }
     }
 
-    /// A shape: its geometry as a mesh or canonical shape, its material with its emitter.
     /// A `shapegroup`: its shapes, kept for `instance`s and not rendered themselves.
     fn shapegroup(&mut self, g: &Obj) -> Result<Prototype> {
         self.check_params(g, &[])?;
@@ -976,6 +1074,7 @@ impl Translator<'_, '_> {
         group.instantiate(to_world, &mut self.out, &mut self.budget).map_err(|e| syntax(&s.at, e))
     }
 
+    /// A shape: its geometry as a mesh or canonical shape, its material with its emitter.
     fn shape(&mut self, s: &Obj) -> Result<()> {
         match s.plugin.as_str() {
             "shapegroup" => {
@@ -1558,6 +1657,42 @@ mod tests {
         .unwrap();
         assert!(r.warnings.iter().any(|w| w.contains("does not instance emitters")), "{:?}", r.warnings);
         assert!(r.description.materials.values().all(|m| m.emission == [0.0; 3]));
+    }
+
+    /// BSDFs we approximate: normal maps, bump maps and masks by their nested BSDF, a blend
+    /// by its heavier BSDF, principled by a rough plastic, conductor or dielectric; each with
+    /// a warning.
+    #[test]
+    fn wrapped_and_approximated_bsdfs() {
+        let material = |bsdf: &str| {
+            let r = read(&format!("<shape type=\"cube\">{bsdf}</shape>"), &[], false).unwrap();
+            (r.description.materials.values().next().unwrap().clone(), r.warnings)
+        };
+        let (m, w) = material(
+            "<bsdf type=\"normalmap\"><texture name=\"normalmap\" type=\"bitmap\"><string name=\"filename\" value=\"n.png\"/></texture>
+             <bsdf type=\"roughplastic\"><rgb name=\"diffuse_reflectance\" value=\"0.1, 0.2, 0.3\"/></bsdf></bsdf>",
+        );
+        assert_eq!((m.kind, m.diffuse), (MaterialKind::Plastic, [0.1, 0.2, 0.3]));
+        assert!(w.len() == 1 && w[0].contains("normal perturbation"), "{w:?}");
+        let (m, w) =
+            material("<bsdf type=\"mask\"><float name=\"opacity\" value=\"0.5\"/><bsdf type=\"conductor\"/></bsdf>");
+        assert!(m.kind == MaterialKind::Conductor && w[0].contains("opacity"), "{w:?}");
+        let (m, _) = material(
+            "<bsdf type=\"blendbsdf\"><float name=\"weight\" value=\"0.8\"/><bsdf type=\"diffuse\"/><bsdf type=\"dielectric\"/></bsdf>",
+        );
+        assert_eq!(m.kind, MaterialKind::Dielectric, "the heavier one");
+        let (m, w) = material(
+            "<bsdf type=\"principled\"><rgb name=\"base_color\" value=\"0.8, 0.1, 0.1\"/><float name=\"roughness\" value=\"0.4\"/></bsdf>",
+        );
+        assert_eq!(
+            (m.kind, m.diffuse, m.roughness.map(|a| (a * 100.0).round())),
+            (MaterialKind::Plastic, [0.8, 0.1, 0.1], Some(16.0))
+        );
+        assert!(w[0].contains("principled"), "{w:?}");
+        let (m, _) = material("<bsdf type=\"principled\"><float name=\"metallic\" value=\"1\"/></bsdf>");
+        assert_eq!((m.kind, m.metal.as_deref(), m.specular), (MaterialKind::Conductor, Some("none"), Some([0.5; 3])));
+        let e = message(read("<shape type=\"cube\"><bsdf type=\"bumpmap\"/></shape>", &[], false));
+        assert!(e.contains("needs one nested BSDF"), "{e}");
     }
 
     /// The film's `rfilter`, Mitsuba's default Gaussian without one.

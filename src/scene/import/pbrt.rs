@@ -1083,6 +1083,50 @@ impl Parser<'_> {
                     params.get(ignored);
                 }
             }
+            "mix" => {
+                let names = match params.get("materials").map(|p| p.values.clone()) {
+                    Some(Values::Texts(v)) if v.len() == 2 => v,
+                    _ => return Err(syntax(at, "a mix material needs \"string materials\" with two names")),
+                };
+                let amount = match params.get("amount").map(|p| (p.kind.clone(), p.values.clone())) {
+                    Some((k, Values::Numbers(v))) if k == "float" && v.len() == 1 => v[0],
+                    _ => 0.5,
+                };
+                // pbrt-v4 picks the second material with probability `amount`.
+                let pick = &names[usize::from(amount > 0.5)];
+                self.unsupported(at, format!("a mix material (amount {amount}): \"{pick}\" stands for it"))?;
+                let found = self.named_materials.get(pick).and_then(|key| self.out.materials.get(key)).cloned();
+                m = found.ok_or_else(|| syntax(at, format!("mix: no named material \"{pick}\" (before it)")))?;
+                params.get("amount");
+            }
+            "coatedconductor" => {
+                self.unsupported(at, "coatedconductor is approximated by its conductor (no coating layer)".into())?;
+                m.kind = MaterialKind::Conductor;
+                let named = |name: &str| match params.get(name).map(|p| p.values.clone()) {
+                    Some(Values::Texts(v)) => v.first().cloned(),
+                    _ => None,
+                };
+                let metal = named("conductor.eta")
+                    .and_then(|e| e.strip_prefix("metal-").and_then(|s| s.strip_suffix("-eta")).map(str::to_string))
+                    .filter(|a| crate::material::conductors::lookup(a).is_some());
+                m.metal = Some(metal.unwrap_or_else(|| "Cu".into()));
+                let r = params.float("conductor.roughness", 0.0, at)?;
+                let remap = params.boolean("remaproughness", true, at)?;
+                m.roughness = Some((if remap { r.max(0.0).sqrt() } else { r }).min(1.0) as f32);
+                for p in &params.list {
+                    p.used.set(true);
+                }
+            }
+            "diffusetransmission" => {
+                self.unsupported(at, "diffusetransmission is approximated by its diffuse reflection".into())?;
+                match self.colour(params, "reflectance", [0.25; 3], at)? {
+                    Colour::Constant(c) => m.diffuse = c,
+                    Colour::Texture(t) => m.diffuse_texture = Some(t),
+                }
+                for ignored in ["transmittance", "scale"] {
+                    params.get(ignored);
+                }
+            }
             "interface" => {
                 self.unsupported(at, "an interface material (media boundary): a glass of index 1.0001 used".into())?;
                 m.kind = MaterialKind::ThinDielectric;
@@ -1693,6 +1737,37 @@ mod tests {
         assert_eq!((r.spp, r.max_depth), (Some(32), Some(4)));
         let d = ok("WorldBegin");
         assert_eq!((d.camera.width, d.camera.height, d.camera.fov_y), (1280, 720, 90.0), "pbrt's defaults");
+    }
+
+    /// Materials we approximate: mix by its likelier material, coatedconductor by its
+    /// conductor, diffusetransmission by its reflection; each with a warning.
+    #[test]
+    fn approximated_materials() {
+        let r = read(
+            "WorldBegin
+            MakeNamedMaterial \"a\" \"string type\" \"diffuse\" \"rgb reflectance\" [0.1 0.2 0.3]
+            MakeNamedMaterial \"b\" \"string type\" \"dielectric\"
+            MakeNamedMaterial \"m\" \"string type\" \"mix\" \"string materials\" [\"a\" \"b\"] \"float amount\" 0.25
+            NamedMaterial \"m\" Shape \"sphere\"
+            Material \"coatedconductor\" \"spectrum conductor.eta\" \"metal-Au-eta\" \"spectrum conductor.k\" \"metal-Au-k\"
+                \"float conductor.roughness\" 0.04 \"float interface.roughness\" 0
+            Shape \"sphere\"
+            Material \"diffusetransmission\" \"rgb reflectance\" [0.4 0.4 0.4] \"rgb transmittance\" [0.5 0.5 0.5]
+            Shape \"sphere\"",
+            false,
+        )
+        .unwrap();
+        let d = &r.description;
+        let m = |i: usize| &d.materials[&d.shapes[i].material];
+        assert_eq!((m(0).kind, m(0).diffuse), (MaterialKind::Diffuse, [0.1, 0.2, 0.3]), "amount 0.25: the first");
+        assert_eq!(
+            (m(1).kind, m(1).metal.as_deref(), m(1).roughness),
+            (MaterialKind::Conductor, Some("Au"), Some(0.2))
+        );
+        assert_eq!((m(2).kind, m(2).diffuse), (MaterialKind::Diffuse, [0.4; 3]));
+        assert_eq!(r.warnings.len(), 3, "{:?}", r.warnings);
+        let e = message(read("WorldBegin Material \"mix\" \"string materials\" [\"x\" \"y\"]", false));
+        assert!(e.contains("no named material \"x\""), "{e}");
     }
 
     #[test]
