@@ -13,6 +13,13 @@
 //! a constant environment is sampled uniformly over the sphere and its estimate `L/pdf` is
 //! exactly `4π·L` for every sample (the usual "luminance × sin θ at the texel centre" leaves
 //! the variation of sin θ within a texel row in the weights).
+//!
+//! With [`Lookup::Mitsuba`] (imported Mitsuba scenes), radiance is read as Mitsuba 3's
+//! `envmap` reads it: bilinearly between texels placed at `φ = 2π(i + ½)/W` and, unlike the
+//! bands above, `θ = πj/(H − 1)` (row 0 at the zenith, the last row at the nadir), in the
+//! map's own frame turned into the world by a rotation. Sampling stays the piecewise-constant
+//! density above (the map's luminance per band): `pdf` is that density, so weights stay exact
+//! while radiance is interpolated.
 use crate::film::Image;
 use crate::geometry::warp::Discrete;
 use crate::geometry::{Vec2, Vec3A, luminance};
@@ -29,9 +36,22 @@ pub struct EnvSample {
     pub pdf: f32,
 }
 
+/// How radiance is read from the map.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Lookup {
+    /// Constant over each texel's band of the sphere (what sampling draws from).
+    #[default]
+    Nearest,
+    /// Mitsuba 3's bilinear reading (module documentation).
+    Mitsuba,
+}
+
 /// An equirectangular environment map (a constant environment is a 1×1 map).
 #[derive(Clone, Debug)]
 pub struct Environment {
+    lookup: Lookup,
+    /// World to the map's frame, when the map is turned (Mitsuba lookups only).
+    to_local: Option<glam::Mat3A>,
     width: usize,
     height: usize,
     /// Linear RGB radiance, row-major, row 0 at the zenith.
@@ -85,7 +105,40 @@ impl Environment {
         }
         let total = row_weights.iter().map(|&x| f64::from(x)).sum::<f64>() as f32;
         let rows = Discrete::new(&row_weights).filter(|_| total > 0.0 && total.is_finite());
-        Ok(Self { width, height, texels, cos_bounds, rows, cols, total })
+        Ok(Self { lookup: Lookup::Nearest, to_local: None, width, height, texels, cos_bounds, rows, cols, total })
+    }
+
+    /// The same map read as Mitsuba 3 reads it, turned into the world by `rotation` (a map
+    /// of fewer than 2 rows stays nearest).
+    #[must_use]
+    pub fn mitsuba(self, rotation: Option<glam::Mat3A>) -> Self {
+        let lookup = if self.height >= 2 { Lookup::Mitsuba } else { Lookup::Nearest };
+        Self { lookup, to_local: rotation.map(|r| r.transpose()), ..self }
+    }
+
+    /// A world direction in the map's frame.
+    #[inline]
+    fn local(&self, d: Vec3A) -> Vec3A {
+        match &self.to_local {
+            Some(m) => *m * d,
+            None => d,
+        }
+    }
+
+    /// Mitsuba 3's bilinear reading of a direction in the map's frame.
+    fn bilinear(&self, d: Vec3A) -> Vec3A {
+        let (w, h) = (self.width, self.height);
+        let u = d.x.atan2(-d.z) / TAU - 0.5 / w as f32;
+        let u = u - u.floor();
+        let v = d.y.clamp(-1.0, 1.0).acos() / PI;
+        let (x, y) = (u * w as f32, v * (h - 1) as f32);
+        let (x0, y0) = ((x as usize).min(w - 1), (y as usize).min(h - 2));
+        let (fx, fy) = (x - x0 as f32, y - y0 as f32);
+        let x1 = (x0 + 1) % w;
+        let t = |row: usize, col: usize| self.texels[row * w + col];
+        let top = t(y0, x0) * (1.0 - fx) + t(y0, x1) * fx;
+        let bottom = t(y0 + 1, x0) * (1.0 - fx) + t(y0 + 1, x1) * fx;
+        top * (1.0 - fy) + bottom * fy
     }
 
     /// The texel (row, column) a unit direction falls in.
@@ -106,8 +159,13 @@ impl Environment {
     #[inline]
     #[must_use]
     pub fn eval(&self, d: Vec3A) -> Vec3A {
-        let (row, col) = self.texel_of(d);
-        self.texels[row * self.width + col]
+        match self.lookup {
+            Lookup::Nearest => {
+                let (row, col) = self.texel_of(d);
+                self.texels[row * self.width + col]
+            }
+            Lookup::Mitsuba => self.bilinear(self.local(d)),
+        }
     }
 
     /// The density per steradian with which [`Self::sample`] returns unit direction `d`.
@@ -117,7 +175,8 @@ impl Environment {
         if self.rows.is_none() {
             return 0.0;
         }
-        luminance(self.eval(d)).max(0.0) / self.total
+        let (row, col) = self.texel_of(self.local(d));
+        luminance(self.texels[row * self.width + col]).max(0.0) / self.total
     }
 
     /// A direction towards the environment (`None` for a black one).
@@ -130,9 +189,16 @@ impl Environment {
         let (c0, c1) = (self.cos_bounds[row], self.cos_bounds[row + 1]);
         let cos_theta = (c0 - uy * (c0 - c1)).clamp(c1.min(c0), c0.max(c1));
         let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-        let direction = Vec3A::new(sin_theta * phi.sin(), cos_theta, -sin_theta * phi.cos());
-        let radiance = self.texels[row * self.width + col];
-        let pdf = luminance(radiance) / self.total;
+        let local = Vec3A::new(sin_theta * phi.sin(), cos_theta, -sin_theta * phi.cos());
+        let texel = self.texels[row * self.width + col];
+        let pdf = luminance(texel) / self.total;
+        let (direction, radiance) = match self.lookup {
+            Lookup::Nearest => (local, texel),
+            Lookup::Mitsuba => {
+                let world = self.to_local.map_or(local, |m| m.transpose() * local);
+                (world, self.bilinear(local))
+            }
+        };
         (pdf > 0.0 && pdf.is_finite()).then_some(EnvSample { direction, radiance, pdf })
     }
 
@@ -177,7 +243,45 @@ mod tests {
     /// degrees of freedom at most: the 1e-4 quantile is about 264.
     #[test]
     fn samples_follow_the_pdf() {
-        let env = test_map();
+        check_samples_follow_the_pdf(&test_map());
+        // Read as Mitsuba does and turned: the density is still `pdf`, in the world.
+        let turn = glam::Mat3A::from_axis_angle(glam::Vec3::new(0.3, 1.0, 0.2).normalize(), 0.7);
+        let env = test_map().mitsuba(Some(turn));
+        check_samples_follow_the_pdf(&env);
+        let mut rng = SampleStream::in_domain(Domain::Photon, 14, 0, 0);
+        for _ in 0..1000 {
+            let s = env.sample(rng.next_2d()).unwrap();
+            assert!(
+                (s.radiance - env.eval(s.direction)).abs().max_element() <= 1e-3 * s.radiance.max_element().max(1e-3)
+            );
+        }
+    }
+
+    /// Mitsuba's reading: texels at `φ = 2π(i + ½)/W`, `θ = πj/(H − 1)`, bilinear between
+    /// them, wrapping in φ; turned by the rotation.
+    #[test]
+    fn mitsuba_lookup_is_bilinear_from_pole_to_pole() {
+        let (w, h) = (4, 3);
+        let texels: Vec<Vec3A> = (0..w * h).map(|k| Vec3A::new(k as f32, (k * k) as f32, 1.0)).collect();
+        let env = Environment::from_texels(w, h, texels.clone()).unwrap().mitsuba(None);
+        let dir = |theta: f32, phi: f32| Vec3A::new(theta.sin() * phi.sin(), theta.cos(), -theta.sin() * phi.cos());
+        let t = |row: usize, col: usize| texels[row * w + col];
+        let close = |a: Vec3A, b: Vec3A| (a - b).abs().max_element() < 1e-3 * b.max_element().max(1.0);
+        // Row 1 sits at the equator (θ = π/2), rows 0 and 2 at the poles.
+        assert!(close(env.eval(dir(PI / 2.0, TAU * 1.5 / 4.0)), t(1, 1)));
+        assert!(close(env.eval(dir(PI / 4.0, TAU * 1.5 / 4.0)), (t(0, 1) + t(1, 1)) * 0.5));
+        assert!(close(env.eval(dir(PI / 2.0, TAU * 2.0 / 4.0)), (t(1, 1) + t(1, 2)) * 0.5));
+        // Between the last column and the first.
+        assert!(close(env.eval(dir(PI / 2.0, TAU * 0.0001)), (t(1, 3) + t(1, 0)) * 0.5));
+        // Turned a quarter about +y: the map's φ = π/2 direction (+x) is the world's −z.
+        let turn = glam::Mat3A::from_axis_angle(glam::Vec3::Y, PI / 2.0);
+        let turned = Environment::from_texels(w, h, texels.clone()).unwrap().mitsuba(Some(turn));
+        assert!(close(turned.eval(turn * dir(PI / 2.0, TAU * 1.5 / 4.0)), t(1, 1)));
+        // A one-row map stays nearest.
+        assert_eq!(Environment::constant(Vec3A::ONE).mitsuba(None).eval(Vec3A::Y), Vec3A::ONE);
+    }
+
+    fn check_samples_follow_the_pdf(env: &Environment) {
         let mut rng = SampleStream::in_domain(Domain::Photon, 11, 0, 0);
         let (nb_c, nb_p, n) = (12usize, 16usize, 400_000usize);
         let bin = |d: Vec3A| {

@@ -128,6 +128,18 @@ pub struct EnvironmentDescription {
     pub layout: Option<MapLayout>,
     /// A rotation of the map into the world (row-major 4×4; its linear part is used).
     pub matrix: Option<[[f32; 4]; 4]>,
+    /// How radiance is read from an equirectangular map: `nearest` (the default: constant
+    /// over each texel's band of the sphere) or `mitsuba` (Mitsuba 3's `envmap`: bilinear
+    /// between texels placed from the zenith row to the nadir row).
+    pub lookup: Option<EnvLookupDescription>,
+}
+
+/// How an environment map is read (see [`crate::light::envmap::Lookup`]).
+#[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum EnvLookupDescription {
+    Nearest,
+    Mitsuba,
 }
 
 /// How an environment map's image covers the sphere.

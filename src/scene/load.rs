@@ -704,17 +704,24 @@ fn lights_from(path: &Path, d: &SceneDescription) -> Result<(Lights, Vec<PathBuf
                         Some(r)
                     }
                 };
-                let (w, h, texels) = if layout == MapLayout::Equirectangular && rotation.is_none() {
+                let mitsuba = e.lookup == Some(super::description::EnvLookupDescription::Mitsuba);
+                if mitsuba && layout != MapLayout::Equirectangular {
+                    return Err(invalid(path, "environment: the mitsuba lookup is for equirectangular maps"));
+                }
+                // Read as Mitsuba reads it, the map is turned at each lookup; otherwise it is
+                // resampled into our layout once.
+                let (w, h, texels) = if mitsuba || (layout == MapLayout::Equirectangular && rotation.is_none()) {
                     (w, h, texels)
                 } else {
                     equirectangular_from(layout, rotation.unwrap_or(glam::Mat3A::IDENTITY), w, h, &texels)
                 };
-                Environment::from_texels(w, h, texels.into_iter().map(|t| t * scale).collect()).map_err(
+                let env = Environment::from_texels(w, h, texels.into_iter().map(|t| t * scale).collect()).map_err(
                     |e| match e {
                         Error::InvalidOption(m) => Error::Image { path: file.clone(), message: m },
                         other => other,
                     },
-                )?
+                )?;
+                if mitsuba { env.mitsuba(rotation) } else { env }
             }
             _ => return Err(invalid(path, "environment: give either `radiance` or `map`")),
         };

@@ -10,10 +10,10 @@
 //! What lies outside the subset gives one warning naming the element, its file and line, and
 //! what is used instead (`strict`: an error).
 use super::super::description::{
-    CameraDescription, DistributionDescription, EnvironmentDescription, FilterDescription, LightDescription,
-    MaskingDescription, MaterialDescription, MaterialKind, MeshDescription, PixelFilterDescription, PixelFilterKind,
-    RenderDescription, RotateDescription, SceneDescription, ShapeDescription, ShapeKind, TextureDescription,
-    TextureKind, WrapDescription,
+    CameraDescription, DistributionDescription, EnvLookupDescription, EnvironmentDescription, FilterDescription,
+    LightDescription, MaskingDescription, MaterialDescription, MaterialKind, MeshDescription, PixelFilterDescription,
+    PixelFilterKind, RenderDescription, RotateDescription, SceneDescription, ShapeDescription, ShapeKind,
+    TextureDescription, TextureKind, WrapDescription,
 };
 use super::{
     At, ImportOptions, Imported, MAX_INSTANCED_TRIANGLES, Prototype, empty_description, syntax, to_rows, unsupported,
@@ -1229,6 +1229,7 @@ impl Translator<'_, '_> {
                     scale: None,
                     layout: None,
                     matrix: None,
+                    lookup: None,
                 };
                 self.environment(e, env)?;
             }
@@ -1246,6 +1247,8 @@ impl Translator<'_, '_> {
                     scale: Some(scale),
                     layout: None,
                     matrix: (rotation != DMat4::IDENTITY).then(|| to_rows(rotation)),
+                    // Bilinear, rows from pole to pole, as Mitsuba reads it.
+                    lookup: Some(EnvLookupDescription::Mitsuba),
                 };
                 self.environment(e, env)?;
             }

@@ -1551,6 +1551,7 @@ impl Parser<'_> {
                         scale: Some(scale),
                         layout: Some(MapLayout::EqualArea),
                         matrix: Some(to_rows(rotation)),
+                        lookup: None,
                     });
                 } else {
                     let radiance = constant(self, "L", 1.0)?;
@@ -1560,6 +1561,7 @@ impl Parser<'_> {
                         scale: None,
                         layout: None,
                         matrix: None,
+                        lookup: None,
                     };
                     self.out.environment = Some(env);
                 }
