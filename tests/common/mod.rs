@@ -34,16 +34,23 @@ pub fn render_bvh<I: Integrator>(scene: &Scene, integrator: &mut I, spp: u32, se
 /// estimators a short render's own variance misses the rare large samples and inflates z).
 /// Returns the largest |z| and the number of tests (blocks × 3).
 pub fn max_block_z(a: &Image, reference: &Image, block: u32) -> (f64, usize) {
-    block_z(a, reference, block, false)
+    block_z(a, reference, block, false, 0.0)
 }
 
 /// As [`max_block_z`], but each image's mean uses its own variance (the classic two-sample
 /// test), for comparing different estimators whose variances differ.
 pub fn max_block_z_both(a: &Image, reference: &Image, block: u32) -> (f64, usize) {
-    block_z(a, reference, block, true)
+    block_z(a, reference, block, true, 0.0)
 }
 
-fn block_z(a: &Image, reference: &Image, block: u32, own_variance: bool) -> (f64, usize) {
+/// [`max_block_z_both`] with a floor on each block's standard error of `floor` times the
+/// reference block's mean: for images with noise-free regions (a sky seen directly), where two
+/// renderers' rounding alone would be many "standard errors" apart.
+pub fn max_block_z_both_floored(a: &Image, reference: &Image, block: u32, floor: f64) -> (f64, usize) {
+    block_z(a, reference, block, true, floor)
+}
+
+fn block_z(a: &Image, reference: &Image, block: u32, own_variance: bool, floor: f64) -> (f64, usize) {
     let b = reference;
     assert_eq!((a.width, a.height), (b.width, b.height));
     let vb = b.variance.as_ref().unwrap();
@@ -64,7 +71,7 @@ fn block_z(a: &Image, reference: &Image, block: u32, own_variance: bool) -> (f64
                         n += 1.0;
                     }
                 }
-                let var = (sa + sb) / (n * n);
+                let var = (sa + sb) / (n * n) + (floor * mb / n).powi(2);
                 if var > 0.0 {
                     let z = ((ma - mb) / n).abs() / var.sqrt();
                     if z > worst && std::env::var_os("ZVIDPT_TEST_VERBOSE").is_some() {

@@ -1118,8 +1118,14 @@ impl Translator<'_, '_> {
         }
         let mut material = match bsdf {
             Some(b) => b.material,
-            // Mitsuba's default BSDF: diffuse 0.5, one-sided.
-            None => MaterialDescription { diffuse: [0.5; 3], two_sided: Some(false), ..MaterialDescription::default() },
+            // Mitsuba's default BSDF: diffuse 0.5, one-sided; black on an emitter (Mitsuba 3
+            // gives an emitting shape without a BSDF a reflectance of 0: measured, its images
+            // do not change when the emitter is given a black BSDF).
+            None => MaterialDescription {
+                diffuse: if emission.is_some() { [0.0; 3] } else { [0.5; 3] },
+                two_sided: Some(false),
+                ..MaterialDescription::default()
+            },
         };
         if let Some(e) = emission {
             material.emission = e;
@@ -1754,6 +1760,10 @@ mod tests {
         assert_eq!((m[1].kind, m[1].ior, m[1].exterior_ior), (MaterialKind::Dielectric, Some(1.333), Some(1.000_277)));
         assert_eq!((m[2].kind, m[2].ior, m[2].two_sided), (MaterialKind::Plastic, Some(1.49), Some(true)));
         assert_eq!((m[2].diffuse, m[3].diffuse), ([0.5; 3], [0.5; 3]));
+        // An emitter without a BSDF reflects nothing, as in Mitsuba 3.
+        let lamp = ok("<shape type=\"rectangle\"><emitter type=\"area\"/></shape>");
+        let m = lamp.materials.values().next().unwrap();
+        assert_eq!((m.diffuse, m.emission), ([0.0; 3], [1.0; 3]));
         let e = message(read("<shape type=\"cube\"><ref id=\"nope\"/></shape>", &[], false));
         assert!(e.contains("nope") && e.contains("line 2"), "{e}");
     }
