@@ -727,6 +727,22 @@ impl Translator<'_, '_> {
         Ok(name)
     }
 
+    /// The texture `name` as Mitsuba 3 reads it for a single value (`eval_1`): a bitmap by its
+    /// luminance, as we read any scalar texture, but a checkerboard with its colours swapped
+    /// (Mitsuba's `eval_1` puts `color1` where `eval` puts `color0`; checked with Mitsuba 3.9.1
+    /// at the four quadrants).
+    fn scalar_texture(&mut self, name: String) -> String {
+        match self.out.textures.get(&name) {
+            Some(t) if t.kind == TextureKind::Checkerboard => {
+                let swapped = TextureDescription { color0: t.color1, color1: t.color0, ..t.clone() };
+                let key = format!("{name}/scalar");
+                self.out.textures.insert(key.clone(), swapped);
+                key
+            }
+            _ => name,
+        }
+    }
+
     /// An index of refraction: a number or one of Mitsuba's names.
     fn ior(&mut self, obj: &Obj, name: &str, default: f32) -> Result<f32> {
         match obj.param(name).cloned() {
@@ -772,6 +788,7 @@ impl Translator<'_, '_> {
             }
             _ => None,
         };
+        let texture = texture.map(|name| self.scalar_texture(name));
         m.roughness = Some(if texture.is_some() { 0.1 } else { self.float(b, "alpha", 0.1)? as f32 });
         if texture.is_some() && !textured {
             self.unsupported(&b.at, "a textured roughness of a plastic is not supported: 0.1 used".into())?;
@@ -1760,6 +1777,12 @@ mod tests {
         assert_eq!((m[1].kind, m[1].ior, m[1].exterior_ior), (MaterialKind::Dielectric, Some(1.333), Some(1.000_277)));
         assert_eq!((m[2].kind, m[2].ior, m[2].two_sided), (MaterialKind::Plastic, Some(1.49), Some(true)));
         assert_eq!((m[2].diffuse, m[3].diffuse), ([0.5; 3], [0.5; 3]));
+        // A checkerboard read as one value swaps its colours, as Mitsuba's `eval_1` does.
+        let d3 = ok("<shape type=\"cube\"><bsdf type=\"roughconductor\"><texture type=\"checkerboard\" name=\"alpha\">
+                <rgb name=\"color0\" value=\"0.05\"/><rgb name=\"color1\" value=\"0.5\"/></texture></bsdf></shape>");
+        let m = d3.materials.values().next().unwrap();
+        let t = &d3.textures[m.roughness_texture.as_ref().unwrap()];
+        assert_eq!((t.color0, t.color1), (Some([0.5; 3]), Some([0.05; 3])));
         // An emitter without a BSDF reflects nothing, as in Mitsuba 3.
         let lamp = ok("<shape type=\"rectangle\"><emitter type=\"area\"/></shape>");
         let m = lamp.materials.values().next().unwrap();
