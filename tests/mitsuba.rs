@@ -100,6 +100,19 @@ fn filters_as_mitsuba_filters() {
     assert!(z > 8.0, "the box filter should differ visibly from Mitsuba's Gaussian: |z| {z:.2}");
 }
 
+/// The largest block |z| (8×8 blocks, per channel; each block's standard error floored at
+/// `floor` times its mean) of `path` at 1024 spp on `xml`, strictly imported, against Mitsuba
+/// 3's image `reference` (16 renders: its variance that of their mean).
+fn mitsuba_z(xml: &str, reference: &str, floor: f64) -> f64 {
+    let scene = Scene::load_with(dir().join(xml), &ImportOptions { defines: Vec::new(), strict: true }).unwrap();
+    let (image, _) = read_exr(&dir().join(reference)).unwrap();
+    let image = Image { spp: 1, ..image };
+    let ours = common::render_bvh(&scene, &mut PathTracer::default(), 1024, 1);
+    let (z, tests) = common::max_block_z_both_floored(&ours, &image, 8, floor);
+    assert_eq!(tests, (ours.width.div_ceil(8) * ours.height.div_ceil(8) * 3) as usize);
+    z
+}
+
 /// An outdoor scene against Mitsuba 3 (`env.xml`, `env-mitsuba.exr`, 16 × 1024 spp): a turned
 /// environment map read as Mitsuba reads it (bilinear, rows from pole to pole), a spot light,
 /// Beckmann glass and copper, plastic, a thin pane, a mapped checkerboard and the Gaussian
@@ -107,12 +120,7 @@ fn filters_as_mitsuba_filters() {
 /// before Mitsuba's lookup: 86 on the sky's blocks).
 #[test]
 fn lights_as_mitsuba_lights() {
-    let scene = Scene::load_with(dir().join("env.xml"), &ImportOptions { defines: Vec::new(), strict: true }).unwrap();
-    let (reference, _) = read_exr(&dir().join("env-mitsuba.exr")).unwrap();
-    let reference = Image { spp: 1, ..reference };
-    let ours = common::render_bvh(&scene, &mut PathTracer::default(), 1024, 1);
-    let (z, tests) = common::max_block_z_both(&ours, &reference, 8);
-    assert_eq!(tests, 144);
+    let z = mitsuba_z("env.xml", "env-mitsuba.exr", 0.0);
     assert!(z < 4.5, "largest block |z| {z:.2} against Mitsuba 3's image");
 }
 
@@ -124,12 +132,7 @@ fn lights_as_mitsuba_lights() {
 /// holds is tested by the importer's unit test: at this noise, a grey one still passes.)
 #[test]
 fn sun_and_sky_as_mitsuba() {
-    let scene = Scene::load_with(dir().join("sun.xml"), &ImportOptions { defines: Vec::new(), strict: true }).unwrap();
-    let (reference, _) = read_exr(&dir().join("sun-mitsuba.exr")).unwrap();
-    let reference = Image { spp: 1, ..reference };
-    let ours = common::render_bvh(&scene, &mut PathTracer::default(), 1024, 1);
-    let (z, tests) = common::max_block_z_both_floored(&ours, &reference, 8, 1e-4);
-    assert_eq!(tests, 144);
+    let z = mitsuba_z("sun.xml", "sun-mitsuba.exr", 1e-4);
     assert!(z < 4.5, "largest block |z| {z:.2} against Mitsuba 3's image");
 }
 
@@ -140,12 +143,7 @@ fn sun_and_sky_as_mitsuba() {
 /// errors floored at 1e-4 of the mean). Max |z| 3.35 at 4096 spp when made.
 #[test]
 fn ply_and_textured_roughness_as_mitsuba() {
-    let scene = Scene::load_with(dir().join("ply.xml"), &ImportOptions { defines: Vec::new(), strict: true }).unwrap();
-    let (reference, _) = read_exr(&dir().join("ply-mitsuba.exr")).unwrap();
-    let reference = Image { spp: 1, ..reference };
-    let ours = common::render_bvh(&scene, &mut PathTracer::default(), 1024, 1);
-    let (z, tests) = common::max_block_z_both_floored(&ours, &reference, 8, 1e-4);
-    assert_eq!(tests, 144);
+    let z = mitsuba_z("ply.xml", "ply-mitsuba.exr", 1e-4);
     assert!(z < 4.5, "largest block |z| {z:.2} against Mitsuba 3's image");
 }
 
