@@ -45,8 +45,9 @@ pub(crate) struct Imported {
     pub sources: Vec<PathBuf>,
 }
 
-/// An empty description to fill. Its camera is a placeholder: both importers always set the
-/// camera (from the sensor, or the format's default) before building.
+/// An empty description to fill, its camera one pixel at the origin looking along +z. Both
+/// importers replace the camera with the scene's own (its sensor, or the format's default
+/// view) when they finish reading.
 pub(crate) fn empty_description() -> SceneDescription {
     SceneDescription {
         camera: CameraDescription {
@@ -162,15 +163,10 @@ impl Prototype {
             let own = mesh.matrix.as_ref().map_or(DMat4::IDENTITY, from_rows);
             out.meshes.push(MeshDescription { matrix: Some(to_rows(m * own)), ..mesh.clone() });
         }
+        // (The importers place every shape by `matrix`.)
         for shape in &self.shapes {
-            let own = shape_matrix(shape);
-            out.shapes.push(ShapeDescription {
-                matrix: Some(to_rows(m * own)),
-                scale: None,
-                rotate: None,
-                translate: None,
-                ..shape.clone()
-            });
+            let own = shape.matrix.as_ref().map_or(DMat4::IDENTITY, from_rows);
+            out.shapes.push(ShapeDescription { matrix: Some(to_rows(m * own)), ..shape.clone() });
         }
         let normal_map = m.inverse().transpose();
         for mesh in &self.inline {
@@ -199,19 +195,4 @@ impl Prototype {
 /// Rows (the description's `matrix`) as a matrix.
 pub(crate) fn from_rows(r: &[[f32; 4]; 4]) -> DMat4 {
     DMat4::from_cols_array_2d(&r.map(|row| row.map(f64::from))).transpose()
-}
-
-/// A canonical shape's placement: its `matrix`, or `scale`, then `rotate`, then `translate`.
-fn shape_matrix(s: &ShapeDescription) -> DMat4 {
-    if let Some(r) = &s.matrix {
-        return from_rows(r);
-    }
-    let scale = s.scale.map_or(DVec3::ONE, |v| DVec3::from_array(v.map(f64::from)));
-    let rotate = s.rotate.map_or(DMat4::IDENTITY, |r| {
-        DVec3::from_array(r.axis.map(f64::from))
-            .try_normalize()
-            .map_or(DMat4::IDENTITY, |axis| DMat4::from_axis_angle(axis, f64::from(r.angle).to_radians()))
-    });
-    let translate = s.translate.map_or(DVec3::ZERO, |v| DVec3::from_array(v.map(f64::from)));
-    DMat4::from_translation(translate) * rotate * DMat4::from_scale(scale)
 }
