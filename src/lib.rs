@@ -18,6 +18,7 @@ pub mod fuzzing;
 pub mod geometry;
 pub mod guide;
 pub mod integrator;
+pub mod io;
 pub mod light;
 pub mod material;
 pub mod photon;
@@ -26,6 +27,7 @@ pub mod render;
 pub mod sampler;
 pub mod scene;
 pub mod stats;
+pub mod texture;
 
 pub use error::{Error, Result};
 

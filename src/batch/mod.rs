@@ -129,7 +129,7 @@ pub struct Report {
 
 /// Reads and expands a job file.
 pub fn load(path: &Path) -> Result<Vec<Job>> {
-    let text = crate::scene::read_text(path, MAX_JOB_FILE_BYTES, "job file")?;
+    let text = crate::io::read_text(path, MAX_JOB_FILE_BYTES, "job file")?;
     let base = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),

@@ -14,7 +14,6 @@ pub mod cie;
 pub mod conductors;
 pub mod fresnel;
 pub mod microfacet;
-pub mod texture;
 
 use crate::geometry::{Vec2, Vec3A};
 use microfacet::Microfacet;

@@ -272,7 +272,7 @@ pub enum MaskingDescription {
     Separable,
 }
 
-/// The kinds of texture (see [`crate::material::texture::Texture`]).
+/// The kinds of texture (see [`crate::texture::Texture`]).
 #[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
 pub enum TextureKind {

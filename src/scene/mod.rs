@@ -10,7 +10,6 @@ pub mod shapes;
 
 pub use camera::Camera;
 pub use description::RenderDescription;
-pub(crate) use load::read_text;
 pub use load::{obj_triangles, ply_triangles};
 
 use crate::geometry::spherical::{self, SphericalTriangle};
@@ -19,7 +18,7 @@ use crate::light::envmap::Environment;
 use crate::light::point::PointLight;
 use crate::material::Bsdf;
 use crate::material::microfacet::Microfacet;
-use crate::material::texture::Texture;
+use crate::texture::Texture;
 use std::f32::consts::PI;
 use std::path::PathBuf;
 

@@ -220,7 +220,7 @@ impl Reader<'_> {
                     if self.files.len() > MAX_INCLUDES {
                         return Err(syntax(&at, format!("more than {MAX_INCLUDES} included files")));
                     }
-                    let text = crate::scene::read_text(&path, MAX_FILE_BYTES, "included file")?;
+                    let text = crate::io::read_text(&path, MAX_FILE_BYTES, "included file")?;
                     self.files.push(path.clone());
                     self.include_depth += 1;
                     let included = self.read_document(&path, &text)?;

@@ -597,7 +597,7 @@ impl Parser<'_> {
                 if self.files.len() > MAX_INCLUDES {
                     return Err(syntax(at, format!("more than {MAX_INCLUDES} included files")));
                 }
-                let text = crate::scene::read_text(&path, MAX_FILE_BYTES, "included file")?;
+                let text = crate::io::read_text(&path, MAX_FILE_BYTES, "included file")?;
                 self.files.push(path.clone());
                 self.include_depth += 1;
                 self.file(&path, &text)?;

@@ -1,0 +1,39 @@
+//! Bounded file reads: every reader of user files goes through them, so a FIFO, a device or
+//! a file larger than its limit is a clear error, never a hang or an abort.
+use crate::{Error, Result};
+use std::path::Path;
+
+/// Reads a whole file after checking that it is a regular file (a FIFO or device would hang
+/// or never end) of at most `limit` bytes. `what` names it in the error.
+pub fn read_bounded(path: &Path, limit: u64, what: &str) -> Result<Vec<u8>> {
+    use std::io::Read as _;
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if !meta.is_file() {
+        return Err(Error::io(path, std::io::Error::other(format!("not a regular file (a {what} must be one)"))));
+    }
+    let too_big = |size: u64| {
+        Error::io(path, std::io::Error::other(format!("{size} bytes: larger than the {limit}-byte limit for a {what}")))
+    };
+    if meta.len() > limit {
+        return Err(too_big(meta.len()));
+    }
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    std::fs::File::open(path)
+        .and_then(|f| f.take(limit + 1).read_to_end(&mut bytes))
+        .map_err(|e| Error::io(path, e))?;
+    if bytes.len() as u64 > limit {
+        return Err(too_big(bytes.len() as u64));
+    }
+    Ok(bytes)
+}
+
+/// Reads a text file with [`read_bounded`]; a byte sequence that is not UTF-8 is reported
+/// with its line.
+pub fn read_text(path: &Path, limit: u64, what: &str) -> Result<String> {
+    let bytes = read_bounded(path, limit, what)?;
+    String::from_utf8(bytes).map_err(|e| {
+        let at = e.utf8_error().valid_up_to();
+        let line = e.as_bytes()[..at].iter().filter(|&&b| b == b'\n').count() + 1;
+        Error::io(path, std::io::Error::other(format!("line {line}: not UTF-8 text: is this a {what}?")))
+    })
+}
