@@ -378,3 +378,23 @@ fn reference_is_cached_and_converge_writes_csv() {
     let stderr = String::from_utf8_lossy(&bad.stderr);
     assert!(!bad.status.success() && stderr.lines().count() == 1 && stderr.contains("32x24"), "{stderr}");
 }
+
+/// Every folder of `scenes/` renders from a clean checkout: each file a scene names (meshes,
+/// textures) is in the repository (a file kept out by `.gitignore` fails here).
+#[test]
+fn every_shipped_scene_renders() {
+    let d = scratch("shipped");
+    let mut count = 0;
+    for entry in std::fs::read_dir(repo("scenes")).unwrap() {
+        let scene = entry.unwrap().path();
+        if !scene.is_dir() {
+            continue;
+        }
+        let out_exr = d.join("out.exr");
+        let o =
+            zvidpt(&["render", s(&scene), "--resolution", "16x12", "--spp", "1", "-q", "--no-png", "-o", s(&out_exr)]);
+        assert!(o.status.success(), "{}: {}", scene.display(), String::from_utf8_lossy(&o.stderr));
+        count += 1;
+    }
+    assert!(count >= 9, "only {count} shipped scenes found");
+}
