@@ -53,6 +53,15 @@ pub fn ply(data: &[u8]) {
     let _ = crate::scene::ply_triangles(data);
 }
 
+/// Texture and environment images in the formats decoded from memory (PFM, Radiance HDR,
+/// TGA, JPEG): the first byte picks the format, the rest is the file.
+pub fn image(data: &[u8]) {
+    use crate::texture::ImageFormat;
+    let Some((&pick, bytes)) = data.split_first() else { return };
+    let format = [ImageFormat::Pfm, ImageFormat::Hdr, ImageFormat::Tga, ImageFormat::Jpeg][usize::from(pick % 4)];
+    let _ = crate::texture::decode(bytes, format, pick & 4 != 0);
+}
+
 /// EXR input of `diff`, `info`, `converge` and `reference`.
 pub fn exr(data: &[u8]) {
     let _ = crate::film::read_exr_from(std::io::Cursor::new(data), Path::new("fuzz.exr"));

@@ -53,6 +53,11 @@ fn exr_corpus() {
 }
 
 #[test]
+fn image_corpus() {
+    assert!(replay("image", zvidpt::fuzzing::image) >= 4);
+}
+
+#[test]
 fn cli_corpus() {
     assert!(replay("cli", zvidpt::fuzzing::cli) >= 5);
 }

@@ -9,6 +9,7 @@
 use crate::geometry::{Vec2, Vec3A};
 
 mod image;
+pub use image::{ImageFormat, decode};
 
 /// What a bitmap holds beyond `[0, 1]²`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
