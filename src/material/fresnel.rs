@@ -22,6 +22,18 @@ pub fn dielectric(cos_i: f32, eta: f32) -> (f32, f32, f32) {
     (r, if cos_i >= 0.0 { -cos_t } else { cos_t }, eta_it)
 }
 
+/// Unpolarised reflectance of a dielectric interface of relative index `eta` for a known
+/// refraction: incident and transmitted cosines `cos_i`, `cos_t` (both ≥ 0, from the same
+/// microfacet). Equals [`dielectric`]`(cos_i, eta).0`, without Snell's cancellation near the
+/// critical angle.
+#[inline]
+#[must_use]
+pub fn dielectric_cosines(cos_i: f32, cos_t: f32, eta: f32) -> f32 {
+    let rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    let rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    (0.5 * (rs * rs + rp * rp)).min(1.0)
+}
+
 /// Reflectance of a conductor with complex index `eta + i·k` (relative to the outside) at
 /// incident cosine `cos_i` (≥ 0), per channel.
 #[must_use]

@@ -487,7 +487,9 @@ fn rough_dielectric(mf: Microfacet, eta: f32, wi: Vec3A, wo: Vec3A) -> (f32, f32
         if m == Vec3A::ZERO || ci <= 0.0 || co >= 0.0 {
             return (0.0, 0.0);
         }
-        let f = fresnel::dielectric(ci, eta).0;
+        // Fresnel from both cosines: Snell's cos θt = √(1 − sin²θt) cancels near the critical
+        // angle (from the denser side), where f32 put f(wi, wo) 0.15% off f(wo, wi).
+        let f = fresnel::dielectric_cosines(ci, -co, eta);
         let denom = ci + eta * co;
         let value = (1.0 - f) * mf.d(m) * mf.g(wi, wo, m) * ci * (-co) / (wi.z * -wo.z * denom * denom);
         let pdf = (1.0 - f) * mf.visible_pdf(wi, m) * eta * eta * (-co) / (denom * denom);

@@ -142,6 +142,10 @@ fn models() -> Vec<(&'static str, Bsdf)> {
         ("Beckmann rough plastic α=0.2", Bsdf::plastic_with(Vec3A::new(0.5, 0.3, 0.1), 1.49, beckmann(0.2), false)),
         ("GGX separable conductor α=0.4", Bsdf::conductor(gold.0, gold.1, separable(Distribution::Ggx, 0.4))),
         ("GGX separable glass α=0.4", Bsdf::dielectric(1.5, separable(Distribution::Ggx, 0.4))),
+        // A relative index below 1: ice seen from water (pbrt's `AirIce`, 0.763).
+        ("interface below 1 α=0.2", Bsdf::dielectric(0.763, Microfacet::ggx(0.2))),
+        ("Beckmann interface below 1 α=0.5", Bsdf::dielectric(0.763, beckmann(0.5))),
+        ("Beckmann glass α=0.5", Bsdf::dielectric(1.5, beckmann(0.5))),
     ]
 }
 

@@ -392,12 +392,24 @@ fn bsdf_from(d: &MaterialDescription) -> std::result::Result<Bsdf, String> {
     // A roughness texture sets α per hit: the material is rough whatever `roughness` says.
     let alpha = if d.roughness_texture.is_some() { alpha.max(Microfacet::MIN_ALPHA) } else { alpha };
     let rough = Microfacet::new(distribution, masking, alpha);
-    // Defaults: glass 1.5; plastic 1.49 (Mitsuba's polypropylene); outside, vacuum.
-    let eta = |default: f32| -> std::result::Result<f32, String> {
+    // Defaults: glass 1.5; plastic 1.49 (Mitsuba's polypropylene); outside, vacuum. A
+    // dielectric is an interface between two media, so its relative index may lie below 1
+    // (ice seen from water, as pbrt-v4 and Mitsuba 3 allow); a plastic's coat is denser than
+    // the air above it.
+    let eta = |default: f32, interface: bool| -> std::result::Result<f32, String> {
         let (int, ext) = (d.ior.unwrap_or(default), d.exterior_ior.unwrap_or(1.0));
         let eta = int / ext;
-        if !(int.is_finite() && ext.is_finite() && int >= 1.0 && ext >= 1.0 && eta.is_finite()) {
-            return Err(format!("indices of refraction must be finite and at least 1, got {int} and {ext}"));
+        let finite = int.is_finite() && ext.is_finite() && eta.is_finite() && eta > 0.0;
+        if interface {
+            if !(finite && int > 0.0 && ext > 0.0 && (1e-2..=1e2).contains(&eta)) {
+                return Err(format!(
+                    "indices of refraction must be positive and finite, within a factor of 100 of each other, got {int} and {ext}"
+                ));
+            }
+        } else if !(finite && int >= 1.0 && ext >= 1.0) {
+            return Err(format!(
+                "a plastic's indices of refraction must be finite and at least 1, got {int} and {ext}"
+            ));
         }
         if (eta - 1.0).abs() < 1e-4 {
             return Err("interior and exterior index of refraction must differ".into());
@@ -424,9 +436,9 @@ fn bsdf_from(d: &MaterialDescription) -> std::result::Result<Bsdf, String> {
                 other => other,
             }
         }
-        K::Dielectric => Bsdf::dielectric(eta(1.5)?, rough),
-        K::ThinDielectric => Bsdf::Dielectric { eta: eta(1.5)?, roughness: None, thin: true },
-        K::Plastic => Bsdf::plastic_with(vec3(d.diffuse), eta(1.49)?, rough, d.nonlinear.unwrap_or(false)),
+        K::Dielectric => Bsdf::dielectric(eta(1.5, true)?, rough),
+        K::ThinDielectric => Bsdf::Dielectric { eta: eta(1.5, true)?, roughness: None, thin: true },
+        K::Plastic => Bsdf::plastic_with(vec3(d.diffuse), eta(1.49, false)?, rough, d.nonlinear.unwrap_or(false)),
     })
 }
 
@@ -1503,6 +1515,32 @@ mod tests {
         vn -0.6 0 0.8\nvn 0.6 0 0.8\n\
         vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
         f 1/1/1 2/2/2 3/3/2 4/4/1\n";
+
+    /// A dielectric is an interface: its relative index may be below 1 (pbrt's `AirIce`); a
+    /// plastic's may not, and no index may be zero, negative or infinite.
+    #[test]
+    fn dielectric_interfaces_below_one() {
+        let material = |m: &str| {
+            let text = format!("{HEAD}[materials.m]\n{m}\n\n[[shape]]\ntype = \"rectangle\"\nmaterial = \"m\"\n");
+            Scene::parse(&text, Path::new("f/scene.toml")).map(|s| s.materials[0].bsdf).map_err(|e| e.to_string())
+        };
+        let ice = material("type = \"dielectric\"\nior = 0.763").unwrap();
+        assert!(matches!(ice, Bsdf::Dielectric { eta, .. } if eta == 0.763), "{ice:?}");
+        let water_ice = material("type = \"dielectric\"\nior = 1.31\nexterior_ior = 1.33").unwrap();
+        assert!(matches!(water_ice, Bsdf::Dielectric { eta, .. } if (eta - 1.31 / 1.33).abs() < 1e-6));
+        for bad in ["ior = 0.0", "ior = -1.5", "ior = 1e-3", "exterior_ior = 0.0"] {
+            let e = material(&format!("type = \"dielectric\"\n{bad}")).unwrap_err();
+            assert!(e.contains("positive and finite"), "{bad}: {e}");
+        }
+        let e = material("type = \"plastic\"\nior = 0.9").unwrap_err();
+        assert!(e.contains("plastic"), "{e}");
+        // pbrt-v4's glass of water: a named dielectric of eta 0.763.
+        let pbrt = "Camera \"perspective\"\nWorldBegin\nMakeNamedMaterial \"AirIce\" \"string type\" \"dielectric\" \"float eta\" 0.763\n\
+            NamedMaterial \"AirIce\"\nShape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"integer indices\" [0 1 2]\n";
+        let options = crate::scene::import::ImportOptions::default();
+        let scene = Scene::parse_pbrt(pbrt, Path::new("f/scene.pbrt"), &options).unwrap();
+        assert!(scene.materials.iter().any(|m| matches!(m.bsdf, Bsdf::Dielectric { eta, .. } if eta == 0.763)));
+    }
 
     /// `[camera] filter`: defaults per type, and its mistakes.
     #[test]
