@@ -104,6 +104,7 @@ pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result
     let mut t = Translator {
         reader: &mut reader,
         ids: HashMap::new(),
+        referenced: std::collections::HashSet::new(),
         out: empty_description(),
         count: 0,
         groups: HashMap::new(),
@@ -213,7 +214,7 @@ impl Reader<'_> {
                 }
                 "include" => {
                     let name = self.required(child, "filename", &at)?;
-                    let path = resolve(file, &name);
+                    let path = resolve(&self.files[0], file, &name);
                     if self.include_depth >= MAX_INCLUDE_DEPTH {
                         return Err(syntax(&at, format!("includes nest deeper than {MAX_INCLUDE_DEPTH} (a cycle?)")));
                     }
@@ -443,8 +444,13 @@ fn one_number(s: &str) -> std::result::Result<f64, String> {
 
 /// A file named in `from`: relative to `from`'s folder, made absolute (the description's
 /// paths are otherwise read relative to the main scene file's folder).
-fn resolve(from: &Path, name: &str) -> PathBuf {
-    let path = from.parent().unwrap_or(Path::new(".")).join(name);
+/// A file a scene names, found as Mitsuba 3's file resolver finds it: in the main scene
+/// file's folder first (for a name written in an included file too), then beside the file
+/// that names it. A name found in neither is taken in the main folder (its error names that).
+fn resolve(main: &Path, from: &Path, name: &str) -> PathBuf {
+    let folder = |p: &Path| p.parent().unwrap_or(Path::new(".")).to_path_buf();
+    let candidates = [folder(main).join(name), folder(from).join(name)];
+    let path = candidates.iter().find(|p| p.exists()).unwrap_or(&candidates[0]).clone();
     std::path::absolute(&path).unwrap_or(path)
 }
 
@@ -487,8 +493,10 @@ fn named_ior(name: &str) -> Option<f32> {
 /// Turns the object tree into a scene description.
 struct Translator<'r, 'o> {
     reader: &'r mut Reader<'o>,
-    /// Top-level objects with an `id`, for `<ref>`s.
+    /// Every object with an `id`, for `<ref>`s (registered before translation).
     ids: HashMap<String, Obj>,
+    /// The ids some `<ref>` names.
+    referenced: std::collections::HashSet<String>,
     out: SceneDescription,
     /// Names handed out for materials and textures.
     count: usize,
@@ -527,11 +535,48 @@ impl Translator<'_, '_> {
     }
 
     fn resolve_ref<'a>(&'a self, id: &str, at: &At) -> Result<&'a Obj> {
-        self.ids.get(id).ok_or_else(|| syntax(at, format!("<ref id=\"{id}\">: no object has that id (before it)")))
+        self.ids.get(id).ok_or_else(|| syntax(at, format!("<ref id=\"{id}\">: no object in the scene has that id")))
+    }
+
+    /// The resolution stage between reading and translating, as Mitsuba 3's parser has one:
+    /// every object with an `id`, at any depth and in any included file, is known before the
+    /// first is translated, so a `<ref>` may come before the object it names. An id given
+    /// twice is an error (Mitsuba's too). Also notes which ids are referenced.
+    fn register_ids(&mut self, obj: &Obj) -> Result<()> {
+        let nested = obj.children.iter().filter_map(|c| match c {
+            Child::Obj(o) => Some(o),
+            Child::Ref(..) => None,
+        });
+        let named = obj.params.iter().filter_map(|(_, v, _)| match v {
+            Value::Object(o) => Some(&**o),
+            _ => None,
+        });
+        for o in nested.chain(named) {
+            if let Some(id) = &o.id {
+                if let Some(first) = self.ids.get(id) {
+                    let (file, line) = (first.at.file.display(), first.at.line);
+                    return Err(syntax(&o.at, format!("id \"{id}\" is given twice (first at {file}, line {line})")));
+                }
+                self.ids.insert(id.clone(), o.clone());
+            }
+            self.register_ids(o)?;
+        }
+        for c in &obj.children {
+            if let Child::Ref(id, _) = c {
+                self.referenced.insert(id.clone());
+            }
+        }
+        for (_, v, _) in &obj.params {
+            if let Value::Ref(id) = v {
+                self.referenced.insert(id.clone());
+            }
+        }
+        Ok(())
     }
 
     fn translate(&mut self, scene: &Obj) -> Result<()> {
         self.check_params(scene, &[])?;
+        self.register_ids(scene)?;
         let mut sensor = None;
         for child in &scene.children {
             let obj = match child {
@@ -541,9 +586,6 @@ impl Translator<'_, '_> {
                     continue;
                 }
             };
-            if let Some(id) = &obj.id {
-                self.ids.insert(id.clone(), obj.clone());
-            }
             match obj.tag.as_str() {
                 "shape" => self.shape(obj)?,
                 "emitter" => self.emitter(obj)?,
@@ -661,7 +703,7 @@ impl Translator<'_, '_> {
             "bitmap" => {
                 self.check_params(t, &["filename", "filter_type", "wrap_mode", "raw", "to_uv"])?;
                 let file = self.text(t, "filename")?.ok_or_else(|| syntax(&t.at, "a bitmap needs `filename`"))?;
-                let path = resolve(&t.at.file, &file);
+                let path = resolve(&self.reader.files[0], &t.at.file, &file);
                 let filter = match self.text(t, "filter_type")?.as_deref() {
                     None | Some("bilinear") => FilterDescription::Bilinear,
                     Some("nearest") => FilterDescription::Nearest,
@@ -1078,11 +1120,17 @@ impl Translator<'_, '_> {
             [Child::Ref(id, at)] => match self.groups.get(id) {
                 Some(g) => g.clone(),
                 None => {
-                    let what = self.resolve_ref(id, at)?;
-                    return Err(syntax(
-                        at,
-                        format!("<ref id=\"{id}\"> in an instance names a <{}>, not a shapegroup", what.tag),
-                    ));
+                    let what = self.resolve_ref(id, at)?.clone();
+                    if what.tag != "shape" || what.plugin != "shapegroup" {
+                        return Err(syntax(
+                            at,
+                            format!("<ref id=\"{id}\"> in an instance names a <{}>, not a shapegroup", what.tag),
+                        ));
+                    }
+                    // A shapegroup defined after its first instance: read it now, once.
+                    let group = self.shapegroup(&what)?;
+                    self.groups.insert(id.clone(), group.clone());
+                    group
                 }
             },
             [Child::Obj(g)] if g.tag == "shape" && g.plugin == "shapegroup" => self.shapegroup(g)?,
@@ -1095,6 +1143,9 @@ impl Translator<'_, '_> {
     fn shape(&mut self, s: &Obj) -> Result<()> {
         match s.plugin.as_str() {
             "shapegroup" => {
+                if s.id.as_ref().is_some_and(|id| self.groups.contains_key(id)) {
+                    return Ok(()); // read already, for an instance before it
+                }
                 let group = self.shapegroup(s)?;
                 match &s.id {
                     Some(id) => {
@@ -1160,7 +1211,7 @@ impl Translator<'_, '_> {
                 let face_normals = self.boolean(s, "face_normals", false)?;
                 // Mitsuba flips an OBJ's `v` by default (its bitmaps start at the top).
                 let flip_v = s.plugin == "obj" && self.boolean(s, "flip_tex_coords", true)?;
-                let path = resolve(&s.at.file, &file).to_string_lossy().into_owned();
+                let path = resolve(&self.reader.files[0], &s.at.file, &file).to_string_lossy().into_owned();
                 let (obj, ply) = if s.plugin == "obj" { (Some(path), None) } else { (None, Some(path)) };
                 self.out.meshes.push(MeshDescription {
                     obj,
@@ -1263,7 +1314,7 @@ impl Translator<'_, '_> {
                 // Mitsuba's map space is ours (+y up, u = atan2(x, −z)/2π): its rotation
                 // carries over.
                 let rotation = DMat4::from_cols(to_world.x_axis, to_world.y_axis, to_world.z_axis, DVec4::W);
-                let map = resolve(&e.at.file, &file).to_string_lossy().into_owned();
+                let map = resolve(&self.reader.files[0], &e.at.file, &file).to_string_lossy().into_owned();
                 let env = EnvironmentDescription {
                     radiance: None,
                     map: Some(map),
@@ -1285,6 +1336,8 @@ impl Translator<'_, '_> {
                 };
                 self.out.lights.push(LightDescription::distant(direction.as_vec3().to_array(), irradiance));
             }
+            // Defined for the shapes that `<ref>` it.
+            "area" if e.id.as_ref().is_some_and(|id| self.referenced.contains(id)) => {}
             "area" => self.unsupported(&e.at, "an area emitter outside a shape lights nothing: ignored".into())?,
             other => self.unsupported(&e.at, format!("<emitter type=\"{other}\"> is not supported: ignored"))?,
         }
@@ -1666,7 +1719,7 @@ mod tests {
         let d = ok(&format!("<shape type=\"shapegroup\" id=\"g\">{shapes}</shape><shape type=\"cube\"/>"));
         assert_eq!(d.shapes.len(), 1, "a group is not rendered by itself");
         for (body, want) in [
-            ("<shape type=\"instance\"><ref id=\"nope\"/></shape>", "no object has that id"),
+            ("<shape type=\"instance\"><ref id=\"nope\"/></shape>", "no object in the scene has that id"),
             ("<bsdf type=\"diffuse\" id=\"b\"/><shape type=\"instance\"><ref id=\"b\"/></shape>", "not a shapegroup"),
             ("<shape type=\"instance\"/>", "holds one shapegroup"),
             ("<shape type=\"shapegroup\" id=\"g\"><shape type=\"shapegroup\"/></shape>", "inside a shapegroup"),
@@ -1823,6 +1876,43 @@ mod tests {
         }
         let deep = "<bsdf type=\"diffuse\">".repeat(100) + &"</bsdf>".repeat(100);
         assert!(message(read(&deep, &[], false)).contains("nest"));
+    }
+
+    #[test]
+    fn references_resolve_after_the_whole_scene_is_read() {
+        // Mitsuba's own cbox-rgb.xml: shapes in one include name BSDFs of another and an area
+        // emitter defined after both.
+        let dir = std::env::temp_dir().join(format!("zvidpt-mitsuba-forward-{}", std::process::id()));
+        // Files named in an included file are found from the main file's folder, as
+        // Mitsuba's file resolver finds them (cbox's fragments/shapes.xml names meshes/…).
+        std::fs::create_dir_all(dir.join("fragments")).unwrap();
+        std::fs::create_dir_all(dir.join("meshes")).unwrap();
+        std::fs::write(dir.join("meshes/tri.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        let scene = |body: &str| format!("<scene version=\"3.0.0\">{body}</scene>");
+        let mesh = "<string name=\"filename\" value=\"meshes/tri.obj\"/>";
+        let shapes = format!("<shape type=\"obj\">{mesh}<ref id=\"white\"/><ref id=\"area-emitter\"/></shape>");
+        std::fs::write(dir.join("fragments/shapes.xml"), scene(&shapes)).unwrap();
+        let white = "<bsdf type=\"diffuse\" id=\"white\"><rgb name=\"reflectance\" value=\"0.2, 0.4, 0.6\"/></bsdf>";
+        std::fs::write(dir.join("fragments/bsdfs.xml"), scene(white)).unwrap();
+        let main = scene(
+            "<include filename=\"fragments/shapes.xml\"/><include filename=\"fragments/bsdfs.xml\"/>\
+             <emitter type=\"area\" id=\"area-emitter\"><rgb name=\"radiance\" value=\"3, 2, 1\"/></emitter>",
+        );
+        let r = import(&dir.join("main.xml"), &main, &ImportOptions { defines: Vec::new(), strict: true }).unwrap();
+        let d = r.description;
+        assert_eq!(d.meshes.len(), 1);
+        assert_eq!(d.meshes[0].obj.as_deref().map(Path::new), Some(dir.join("meshes/tri.obj").as_path()));
+        let m = &d.materials[d.meshes[0].material.as_ref().unwrap()];
+        assert_eq!(m.diffuse, [0.2, 0.4, 0.6]);
+        assert_eq!(m.emission, [3.0, 2.0, 1.0]);
+        // An instance before its shapegroup; a nested object's id; an id given twice.
+        let d = ok("<shape type=\"instance\"><ref id=\"g\"/></shape>\
+             <shape type=\"shapegroup\" id=\"g\"><shape type=\"sphere\"><bsdf type=\"conductor\" id=\"metal\"/></shape></shape>\
+             <shape type=\"cube\"><ref id=\"metal\"/></shape>");
+        assert_eq!(d.shapes.len(), 2, "the instance's sphere and the cube; the group itself is not rendered");
+        let e = message(read("<bsdf type=\"diffuse\" id=\"a\"/><bsdf type=\"conductor\" id=\"a\"/>", &[], false));
+        assert!(e.contains("given twice") && e.contains("line"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
