@@ -676,8 +676,12 @@ fn lights_from(path: &Path, d: &SceneDescription) -> Result<(Lights, Vec<PathBuf
                             linear.y_axis.normalize_or_zero(),
                             linear.z_axis.normalize_or_zero(),
                         );
-                        if !(r.determinant() - 1.0).abs().lt(&1e-3) {
-                            return Err(invalid(path, "environment: `matrix` must be a rotation"));
+                        // A mirror image too (pbrt's hair-curl turns its sky by a matrix of
+                        // determinant −1): directions keep their solid angle either way.
+                        let orthogonal =
+                            (r.transpose() * r - glam::Mat3A::IDENTITY).to_cols_array().iter().all(|x| x.abs() < 1e-3);
+                        if !orthogonal {
+                            return Err(invalid(path, "environment: `matrix` must be a rotation or a reflection"));
                         }
                         Some(r)
                     }
@@ -1837,6 +1841,52 @@ mod ply_tests {
 #[cfg(test)]
 mod environment_tests {
     use super::*;
+
+    /// A map turned by a mirror image (determinant −1, as pbrt's hair-curl turns its sky)
+    /// is read mirrored; a shear is refused.
+    #[test]
+    fn environments_may_be_mirrored_not_sheared() {
+        let dir = std::env::temp_dir().join(format!("zvidpt-env-mirror-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // 4 × 2 PFM (rows from the bottom), bright only in its first column (φ near 0: +x).
+        let mut pfm = b"PF\n4 2\n-1\n".to_vec();
+        for _row in 0..2 {
+            for i in 0..4 {
+                let v: f32 = if i == 0 { 1.0 } else { 0.0 };
+                for _ in 0..3 {
+                    pfm.extend(v.to_le_bytes());
+                }
+            }
+        }
+        std::fs::write(dir.join("sky.pfm"), pfm).unwrap();
+        let scene = |matrix: &str| {
+            let text = format!(
+                "{}[environment]\nmap = \"sky.pfm\"\nlookup = \"mitsuba\"\nmatrix = {matrix}\n\n\
+                 [materials.m]\n\n[[shape]]\ntype = \"rectangle\"\nmaterial = \"m\"\n",
+                "[camera]\neye = [0.0, 0.0, 3.0]\nlook_at = [0.0, 0.0, 0.0]\nfov_y = 40.0\nwidth = 8\nheight = 8\n\n"
+            );
+            Scene::parse(&text, &dir.join("scene.toml"))
+        };
+        let identity = "[[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]";
+        let mirror = "[[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]";
+        let shear = "[[1.0, 0.5, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]";
+        let plain = scene(identity).unwrap();
+        let mirrored = scene(mirror).unwrap();
+        let (e, m) = (plain.lights.environment.as_ref().unwrap(), mirrored.lights.environment.as_ref().unwrap());
+        // Mirroring z swaps a direction with its mirror image.
+        let mut lit = 0;
+        for k in 0..64 {
+            let phi = std::f32::consts::TAU * (k as f32 + 0.5) / 64.0;
+            let d = Vec3A::new(phi.cos(), 0.3, phi.sin()).normalize();
+            let mirror_d = Vec3A::new(d.x, d.y, -d.z);
+            assert_eq!(m.eval(d), e.eval(mirror_d), "{d}");
+            lit += usize::from(e.eval(d).x > 0.0);
+            assert!(m.eval(d) != e.eval(d) || e.eval(d) == e.eval(mirror_d));
+        }
+        assert!(lit > 0 && lit < 64, "the map is bright in some directions only ({lit} of 64)");
+        assert!(scene(shear).unwrap_err().to_string().contains("rotation or a reflection"));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     /// An equal-area map bright only around its centre (pbrt's +z) lands, resampled, around
     /// our +z (the middle of the equirectangular image); turned by a rotation taking +z to +y,

@@ -1,6 +1,7 @@
 //! Scenes: triangles with diffuse materials and one-sided emitters, a pinhole camera, and the
 //! full shading record built once from a backend's preliminary [`Hit`].
 mod camera;
+pub mod curves;
 pub mod description;
 pub mod filter;
 pub mod import;

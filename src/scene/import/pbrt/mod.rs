@@ -258,6 +258,11 @@ struct Parser<'o> {
     instances: Vec<(String, DMat4, At)>,
     /// The pixel filter (pbrt-v4's default: a Gaussian of σ 0.5, radius 1.5).
     filter: PixelFilterDescription,
+    /// Curves tessellated so far, one mesh per material (a hair file holds thousands of
+    /// one-curve directives), with where the first was written; and whether flat curves
+    /// were warned about.
+    curves: Vec<(String, crate::scene::curves::CurveMesh, String)>,
+    warned_flat_curves: bool,
 }
 
 /// Reads the pbrt-v4 scene at `path` (text `text`).
@@ -288,10 +293,25 @@ pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result
         defining: None,
         instances: Vec::new(),
         filter: PixelFilterDescription { kind: PixelFilterKind::Gaussian, stddev: Some(0.5), radius: Some([1.5; 2]) },
+        curves: Vec::new(),
+        warned_flat_curves: false,
     };
     p.file(path, text)?;
     p.finish()?;
     Ok(Imported { description: p.out, warnings: p.warnings, sources: p.files })
+}
+
+/// Tessellated curves as an inline mesh of `material`.
+fn curve_mesh(mesh: crate::scene::curves::CurveMesh, material: String, origin: String) -> InlineMesh {
+    InlineMesh {
+        origin,
+        positions: mesh.positions,
+        indices: mesh.indices,
+        normals: Some(mesh.normals),
+        uvs: None,
+        material,
+        reverse_winding: false,
+    }
 }
 
 /// A cursor over one file's tokens.
@@ -855,6 +875,9 @@ impl Parser<'_> {
         if let Some((name, _, at)) = &self.defining {
             return Err(syntax(at, format!("ObjectBegin \"{name}\" without an ObjectEnd")));
         }
+        for (material, mesh, origin) in std::mem::take(&mut self.curves) {
+            self.out.inline_meshes.push(curve_mesh(mesh, material, origin));
+        }
         let mut budget = MAX_INSTANCED_TRIANGLES;
         for (name, ctm, at) in std::mem::take(&mut self.instances) {
             match self.objects.get(&name) {
@@ -1001,6 +1024,44 @@ impl Parser<'_> {
         }
     }
 
+    /// A hair material's colour: `color` if given, else the colour whose absorption is
+    /// `sigma_a`, else that of the melanin concentrations (pbrt-v4's default: eumelanin 1.3),
+    /// by Chiang et al.'s (2016) mapping between colour and absorption at the azimuthal
+    /// roughness `beta_n`, as pbrt-v4's `HairBxDF` uses it.
+    fn hair_colour(&mut self, params: &Params, at: &At) -> Result<[f32; 3]> {
+        let beta_n = params.float("beta_n", 0.3, at)?.clamp(0.0, 1.0);
+        let constant = |this: &mut Self, name: &str| -> Result<Option<[f32; 3]>> {
+            if params.get(name).is_none() {
+                return Ok(None);
+            }
+            match this.colour(params, name, [0.0; 3], at)? {
+                Colour::Constant(c) => Ok(Some(c)),
+                Colour::Texture(_) => {
+                    this.unsupported(at, format!("a hair's \"{name}\" as a texture: its default used"))?;
+                    Ok(None)
+                }
+            }
+        };
+        if let Some(c) = constant(self, "color")? {
+            for ignored in ["sigma_a", "eumelanin", "pheomelanin"] {
+                params.get(ignored);
+            }
+            return Ok(c.map(|x| x.clamp(0.0, 1.0)));
+        }
+        let sigma_a = match constant(self, "sigma_a")? {
+            Some(s) => s.map(f64::from),
+            None => {
+                let (e, p) =
+                    (params.float("eumelanin", 1.3, at)?.max(0.0), params.float("pheomelanin", 0.0, at)?.max(0.0));
+                let (eu, ph) = ([0.419, 0.697, 1.37], [0.187, 0.4, 1.05]);
+                [0, 1, 2].map(|i| e * eu[i] + p * ph[i])
+            }
+        };
+        let b = beta_n;
+        let k = 5.969 - 0.215 * b + 2.532 * b * b - 10.73 * b.powi(3) + 5.574 * b.powi(4) + 0.245 * b.powi(5);
+        Ok(sigma_a.map(|s| (-(s.max(0.0).sqrt()) * k).exp() as f32))
+    }
+
     fn material(&mut self, kind: &str, params: &Params, at: &At) -> Result<MaterialDescription> {
         let mut m = MaterialDescription::default();
         params.get("displacement").inspect(|_| ());
@@ -1124,6 +1185,16 @@ impl Parser<'_> {
                     Colour::Texture(t) => m.diffuse_texture = Some(t),
                 }
                 for ignored in ["transmittance", "scale"] {
+                    params.get(ignored);
+                }
+            }
+            "hair" => {
+                self.unsupported(
+                    at,
+                    "hair is approximated by a diffuse surface of the colour its absorption gives".into(),
+                )?;
+                m.diffuse = self.hair_colour(params, at)?;
+                for ignored in ["eta", "beta_m", "alpha"] {
                     params.get(ignored);
                 }
             }
@@ -1338,6 +1409,73 @@ impl Parser<'_> {
         Ok(name)
     }
 
+    /// A `curve` (hair, fur): tessellated into triangles (see [`crate::scene::curves`]), in
+    /// world space, its width scaled as the transform scales volumes.
+    fn curve(&mut self, params: &Params, at: &At) -> Result<()> {
+        use crate::scene::curves::{Basis, Curve, CurveMesh, Sweep};
+        let p = params.numbers("P", at)?.ok_or_else(|| syntax(at, "a curve needs \"point3 P\""))?.to_vec();
+        if p.len() % 3 != 0 {
+            return Err(syntax(at, "\"P\" must hold whole points"));
+        }
+        let ctm = self.state.ctm;
+        let points: Vec<DVec3> = p.chunks(3).map(|c| ctm.transform_point3(DVec3::new(c[0], c[1], c[2]))).collect();
+        let basis = match params.text("basis", at)?.as_deref() {
+            None | Some("bezier") => Basis::Bezier,
+            Some("bspline") => Basis::Bspline,
+            Some(other) => {
+                return Err(syntax(at, format!("curve basis \"{other}\": pbrt-v4 knows bezier and bspline")));
+            }
+        };
+        let degree = params.integer("degree", 3, at)?;
+        let sweep = match params.text("type", at)?.as_deref() {
+            None | Some("flat") => {
+                if !self.warned_flat_curves {
+                    self.warned_flat_curves = true;
+                    self.unsupported(at, "flat curves (which face every ray) are tessellated as tubes".into())?;
+                }
+                Sweep::Tube
+            }
+            Some("cylinder") => Sweep::Tube,
+            Some("ribbon") => Sweep::Ribbon,
+            Some(other) => {
+                return Err(syntax(at, format!("curve type \"{other}\": pbrt-v4 knows flat, cylinder and ribbon")));
+            }
+        };
+        let width = params.float("width", 1.0, at)?;
+        let scale = ctm.determinant().abs().cbrt();
+        let width = [params.float("width0", width, at)? * scale, params.float("width1", width, at)? * scale];
+        let normal_map = ctm.inverse().transpose();
+        let normals: Option<Vec<DVec3>> = params.numbers("N", at)?.map(|n| {
+            n.chunks(3)
+                .filter(|c| c.len() == 3)
+                .map(|c| normal_map.transform_vector3(DVec3::new(c[0], c[1], c[2])))
+                .collect()
+        });
+        params.get("splitdepth");
+        let degree = usize::try_from(degree).unwrap_or(0);
+        let curve = Curve { points: &points, basis, degree, sweep, width, normals: normals.as_deref() };
+        let material = self.shape_material()?;
+        let max = crate::scene::load::MAX_TRIANGLES;
+        if self.defining.is_some() {
+            // In an object: a mesh of its own, captured with the object's other shapes.
+            let mut mesh = CurveMesh::default();
+            mesh.add(&curve, max).map_err(|e| syntax(at, e))?;
+            self.out.inline_meshes.push(curve_mesh(mesh, material, at.to_string()));
+            return Ok(());
+        }
+        let k = match self.curves.iter().position(|(m, ..)| *m == material) {
+            Some(k) => k,
+            None => {
+                self.curves.push((material, CurveMesh::default(), at.to_string()));
+                self.curves.len() - 1
+            }
+        };
+        let others: usize =
+            self.curves.iter().enumerate().filter(|(i, _)| *i != k).map(|(_, (_, m, _))| m.indices.len() / 3).sum();
+        let mesh = &mut self.curves[k].1;
+        mesh.add(&curve, max.saturating_sub(others)).map_err(|e| syntax(at, e))
+    }
+
     fn shape(&mut self, kind: &str, params: &Params, at: &At) -> Result<()> {
         for ignored in ["alpha", "emissionfilename"] {
             if params.get(ignored).is_some() {
@@ -1422,6 +1560,7 @@ impl Parser<'_> {
                     reverse_winding: world_reverse && !has_normals,
                 });
             }
+            "curve" => self.curve(params, at)?,
             "plymesh" => {
                 let file =
                     params.text("filename", at)?.ok_or_else(|| syntax(at, "a plymesh needs \"string filename\""))?;
@@ -1813,6 +1952,51 @@ mod tests {
         assert!(d.textures.values().any(|t| t.color0 == Some([0.1, 0.2, 0.3])), "constants fold");
         let e = message(read("WorldBegin Texture \"s\" \"float\" \"scale\" \"texture tex\" \"nope\"", false));
         assert!(e.contains("no such texture \"nope\""), "{e}");
+    }
+
+    /// Curves become triangles (one mesh per material however many directives), placed by
+    /// the transform with their width scaled; hair is a diffuse colour from its melanin.
+    #[test]
+    fn curves_and_hair() {
+        let r = read(
+            "WorldBegin
+            MakeNamedMaterial \"h\" \"string type\" \"hair\" \"float eumelanin\" 0.2
+            NamedMaterial \"h\"
+            Translate 0 0 5
+            Scale 2 2 2
+            Shape \"curve\" \"string type\" \"cylinder\" \"string basis\" \"bspline\" \"point3 P\" [0 0 0 0 0 1 0 0 2 0 0 3 0 0 4] \"float width\" 0.1
+            Shape \"curve\" \"point3 P\" [1 0 0 1 0 1 1 0 2 1 0 3] \"float width0\" 0.1 \"float width1\" 0
+            Material \"diffuse\"
+            Shape \"curve\" \"string type\" \"ribbon\" \"point3 P\" [2 0 0 2 0 1 2 0 2 2 0 3] \"normal N\" [1 0 0 1 0 0]",
+            false,
+        )
+        .unwrap();
+        let d = &r.description;
+        assert_eq!(d.inline_meshes.len(), 2, "one mesh per material");
+        let hair = &d.inline_meshes[0];
+        assert!(!hair.indices.is_empty() && hair.indices.len().is_multiple_of(3));
+        for p in &hair.positions {
+            // Placed: z from 5 to 13, x near 0 (first curve) or 2 (second), radius ≤ 0.1.
+            assert!(p[2] >= 4.9 && p[2] <= 13.1, "{p:?}");
+            assert!(p[0].abs() <= 0.11 || (p[0] - 2.0).abs() <= 0.11, "{p:?}");
+        }
+        let colour = d.materials[&hair.material].diffuse;
+        // Eumelanin 0.2: σa = 0.2 × (0.419, 0.697, 1.37); at βn 0.3, c = exp(−√σa · 5.888).
+        for (c, eu) in colour.iter().zip([0.419f64, 0.697, 1.37]) {
+            let want = (-(0.2 * eu).sqrt() * 5.888_29).exp() as f32;
+            assert!((c - want).abs() < 1e-4, "{colour:?}");
+        }
+        assert!(r.warnings.iter().any(|w| w.contains("hair")) && r.warnings.iter().any(|w| w.contains("flat curves")));
+        assert_eq!(r.warnings.iter().filter(|w| w.contains("flat curves")).count(), 1);
+        for (body, want) in [
+            ("Shape \"curve\" \"string basis\" \"catmull\" \"point3 P\" [0 0 0 0 0 1 0 0 2 0 0 3]", "basis"),
+            ("Shape \"curve\" \"point3 P\" [0 0 0 0 0 1 0 0 2]", "control points"),
+            ("Shape \"curve\" \"string type\" \"ribbon\" \"point3 P\" [0 0 0 0 0 1 0 0 2 0 0 3]", "normal"),
+            ("Shape \"curve\" \"integer degree\" 5 \"point3 P\" [0 0 0 0 0 1 0 0 2 0 0 3]", "degree"),
+        ] {
+            let e = message(read(&format!("WorldBegin {body}"), false));
+            assert!(e.contains(want), "{body}: {e}");
+        }
     }
 
     #[test]
