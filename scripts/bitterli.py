@@ -217,6 +217,10 @@ def cmd_fidelity(a):
         th, tw, _ = tung.shape
         s = a.factor
         w, h = tw // s, th // s
+        # A few Tungsten renders hold non-finite pixels (water-caustic: one inf): left out of
+        # the means, and their pixels' blocks out of the z-test.
+        bad = ~np.isfinite(tung[:h * s, :w * s]).all(-1).reshape(h, s, w, s).any((1, 3))
+        tung = np.where(np.isfinite(tung), tung, 0.0)
         tung = tung[:h * s, :w * s].reshape(h, s, w, s, 3).mean((1, 3))
         ours_path = out / f"{name}.exr"
         t0 = time.time()
@@ -228,7 +232,8 @@ def cmd_fidelity(a):
             continue
         ours, var = read_exr(ours_path)
         # zvidpt writes the variance of each pixel's mean.
-        ratio = ours.mean((0, 1)) / np.maximum(tung.mean((0, 1)), 1e-12)
+        good = ~bad
+        ratio = ours[good].mean(0) / np.maximum(tung[good].mean(0), 1e-12)
         b = a.block
         bh, bw = h // b, w // b
         blk = lambda img: img[:bh * b, :bw * b].reshape(bh, b, bw, b, 3).mean((1, 3))
@@ -237,7 +242,7 @@ def cmd_fidelity(a):
         d = np.diff(tung[:bh * b, :bw * b], axis=1)
         noise = np.concatenate([d, d[:, -1:]], 1) ** 2 / 2
         var_tung = noise.reshape(bh, b, bw, b, 3).mean((1, 3)) / (b * b)
-        keep = tung_b > 1e-4 * tung.mean()
+        keep = (tung_b > 1e-4 * tung.mean()) & ~blk(bad[..., None].repeat(3, -1).astype(float)).astype(bool)
         z = (ours_b - tung_b) / np.sqrt(var_ours + var_tung + 1e-30)
         z = z[keep]
         print(f"| {name} | {w}x{h}, {a.spp} | {ratio[0]:.3f}, {ratio[1]:.3f}, {ratio[2]:.3f} | {z.size} | "

@@ -1126,10 +1126,15 @@ impl Parser<'_> {
             "coateddiffuse" => {
                 self.unsupported(
                     at,
-                    "coateddiffuse is approximated by Mitsuba's plastic (one interface, no layer thickness or albedo)"
+                    "coateddiffuse is approximated by Mitsuba's nonlinear plastic (one interface, no layer thickness or albedo)"
                         .into(),
                 )?;
                 m.kind = MaterialKind::Plastic;
+                // Nonlinear: light reflected back down by the coat meets the base again, so the
+                // base's colour compounds, ρ/(1 − ρ·F̄dr), as in pbrt-v4's random walk through
+                // the layer (the linear form, ρ/(1 − F̄dr), made coffee's orange and grey floor
+                // 1.5× too bright against Tungsten's render).
+                m.nonlinear = Some(true);
                 match self.colour(params, "reflectance", [0.5; 3], at)? {
                     Colour::Constant(c) => m.diffuse = c,
                     Colour::Texture(t) => m.diffuse_texture = Some(t),
@@ -2051,7 +2056,7 @@ mod tests {
 
     #[test]
     fn unsupported_warns_or_fails() {
-        let text = "WorldBegin\nShape \"sphere\" \"float zmax\" 0.5\nLightSource \"goniometric\" \"rgb I\" [1 1 1]\nMaterial \"hair\"\nShape \"curve\"\n";
+        let text = "WorldBegin\nShape \"sphere\" \"float zmax\" 0.5\nLightSource \"goniometric\" \"rgb I\" [1 1 1]\nMaterial \"measured\"\nShape \"cylinder\"\n";
         let r = read(text, false).unwrap();
         assert_eq!(r.warnings.len(), 4, "{:?}", r.warnings);
         assert!(r.warnings[0].starts_with("/nowhere/scene.pbrt:2:") && r.warnings[0].contains("partial"));
