@@ -6,6 +6,7 @@ how they compare with Tungsten's renders, and how fast they load.
     python3 scripts/bitterli.py standins COLLECTION STANDINS
     python3 scripts/bitterli.py fidelity COLLECTION OUT [--spp 64] [--scenes a,b] [--zvidpt BIN]
     python3 scripts/bitterli.py load COLLECTION [--scenes a,b] [--zvidpt BIN]
+    python3 scripts/bitterli.py tungsten COLLECTION SCENE OUT.exr [--factor 16]
 
 COLLECTION is a folder of scene folders, each holding pbrt/scene-v4.pbrt and
 pbrt/TungstenRender.exr (the layout of the public mirror gonsolo/bitterli).
@@ -20,6 +21,8 @@ standins  makes STANDINS, a copy of COLLECTION (hard links) in which every file 
 fidelity  renders each complete scene with `path` at a quarter of Tungsten's resolution and
           compares it with Tungsten's render averaged down to the same size: per channel, the
           ratio of the image means; per block of 8x8 pixels, a z statistic (below).
+tungsten  writes Tungsten's render of SCENE averaged down by a factor, with the estimated
+          variance of each averaged pixel (the reference of tests/bitterli.rs).
 load      times parsing, BVH builds (both backends where compiled in) and peak memory, from
           the renderer's own report (`--aov` none, `--spp 1`).
 
@@ -225,7 +228,7 @@ def cmd_fidelity(a):
         ours_path = out / f"{name}.exr"
         t0 = time.time()
         r = run([a.zvidpt, "render", str(f), "--integrator", "path", "--resolution", f"{w}x{h}", "--spp", str(a.spp),
-                 "--seed", "1", "-q", "-o", str(ours_path), "--png", str(out / f"{name}.png")])
+                 "--seed", "1", "-q", "-o", str(ours_path), "--png", str(out / f"{name}.png")] + a.extra.split())
         secs = time.time() - t0
         if r.returncode != 0:
             print(f"| {name} | failed: {r.stderr.strip().splitlines()[-1]} | | | | | |")
@@ -252,6 +255,34 @@ def cmd_fidelity(a):
         srgb = np.where(both <= 0.0031308, 12.92 * both, 1.055 * np.power(np.maximum(both, 0), 1 / 2.4) - 0.055)
         px = (np.clip(srgb, 0, 1) * 255 + 0.5).astype(np.uint8)
         write_png(out / f"{name}-vs-tungsten.png", w, 2 * h, list(px.reshape(-1)))
+
+
+def cmd_tungsten(a):
+    """Tungsten's render of one scene averaged down by `factor`, with the variance of each
+    averaged pixel estimated as for `fidelity` (adjacent-pixel differences), written as an EXR
+    that zvidpt's tests read as an image of one sample with that variance."""
+    import numpy as np
+    import OpenEXR
+    import Imath
+    tung, _ = read_exr(Path(a.collection) / a.scene / "pbrt" / "TungstenRender.exr")
+    tung = np.where(np.isfinite(tung), tung, 0.0)
+    th, tw, _ = tung.shape
+    s = a.factor
+    h, w = th // s, tw // s
+    tung = tung[:h * s, :w * s]
+    d = np.diff(tung, axis=1)
+    noise = np.concatenate([d, d[:, -1:]], 1) ** 2 / 2
+    mean = tung.reshape(h, s, w, s, 3).mean((1, 3))
+    var = noise.reshape(h, s, w, s, 3).mean((1, 3)) / (s * s)
+    header = OpenEXR.Header(w, h)
+    ch = Imath.Channel(Imath.PixelType(Imath.PixelType.FLOAT))
+    names = ["R", "G", "B", "variance.R", "variance.G", "variance.B"]
+    header["channels"] = {n: ch for n in names}
+    out = OpenEXR.OutputFile(a.out, header)
+    planes = [mean[:, :, c] for c in range(3)] + [var[:, :, c] for c in range(3)]
+    out.writePixels({n: p.astype(np.float32).tobytes() for n, p in zip(names, planes)})
+    out.close()
+    print(f"{a.out}: {w}x{h}, mean {mean.mean((0, 1))}")
 
 
 def cmd_load(a):
@@ -281,6 +312,11 @@ def cmd_load(a):
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="command", required=True)
+    t = sub.add_parser("tungsten")
+    t.add_argument("collection")
+    t.add_argument("scene")
+    t.add_argument("out")
+    t.add_argument("--factor", type=int, default=16)
     for name in ("probe", "standins", "fidelity", "load"):
         s = sub.add_parser(name)
         s.add_argument("collection")
@@ -292,6 +328,7 @@ def main():
             s.add_argument("--spp", type=int, default=64)
             s.add_argument("--factor", type=int, default=4, help="Tungsten's resolution over ours")
             s.add_argument("--block", type=int, default=8)
+            s.add_argument("--extra", default="", help="more zvidpt render flags, e.g. \"--max-depth 65\"")
         if name in ("fidelity", "load"):
             s.add_argument("--scenes")
         if name == "load":
@@ -299,7 +336,9 @@ def main():
             s.add_argument("--resolution", default="64x36")
             s.add_argument("--spp", type=int, default=1)
     a = p.parse_args()
-    {"probe": cmd_probe, "standins": cmd_standins, "fidelity": cmd_fidelity, "load": cmd_load}[a.command](a)
+    commands = {"probe": cmd_probe, "standins": cmd_standins, "fidelity": cmd_fidelity, "load": cmd_load,
+                "tungsten": cmd_tungsten}
+    commands[a.command](a)
 
 
 if __name__ == "__main__":
