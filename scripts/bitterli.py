@@ -160,6 +160,8 @@ def stand_in(p):
         p.write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
                      "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
                      "1e4 1e4 1e4\n1e4 1e4 1.0001e4\n1e4 1.0001e4 1e4\n3 0 1 2\n")
+    elif ext == ".obj":
+        p.write_text("v 1e4 1e4 1e4\nv 1e4 1e4 1.0001e4\nv 1e4 1.0001e4 1e4\nf 1 2 3\n")
     elif ext == ".pbrt":
         # Hair: a few hundred curls of four B-spline points near the origin.
         import random
@@ -181,9 +183,15 @@ def cmd_standins(a):
         sys.exit(f"{dst} exists: give a new folder")
     shutil.copytree(src, dst, copy_function=os.link)
     for name, f in scenes(dst):
-        for p in missing(f):
+        gone = missing(f)
+        # The Mitsuba 3 versions beside some scenes name their files as <string name="filename">.
+        xml = f.parent.parent / "mitsuba" / "scene_v3.xml"
+        if xml.is_file():
+            names = re.findall(r'name="filename"\s+value="([^"]*)"', xml.read_text(errors="replace"))
+            gone += [xml.parent / n for n in dict.fromkeys(names) if not (xml.parent / n).exists()]
+        for p in gone:
             made = stand_in(p) if p.name and not p.name.startswith(".") else False
-            print(f"{name}: {p.relative_to(f.parent)}: {'stood in' if made else 'left missing'}")
+            print(f"{name}: {p.relative_to(f.parent.parent)}: {'stood in' if made else 'left missing'}")
 
 
 def read_exr(path):

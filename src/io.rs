@@ -37,3 +37,12 @@ pub fn read_text(path: &Path, limit: u64, what: &str) -> Result<String> {
         Error::io(path, std::io::Error::other(format!("line {line}: not UTF-8 text: is this a {what}?")))
     })
 }
+
+/// The process's peak resident memory (Linux's `VmHWM`), where the system reports it.
+#[must_use]
+pub fn peak_memory_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}

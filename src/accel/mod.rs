@@ -86,10 +86,20 @@ pub trait WithAccel {
 /// Builds the chosen backend over `scene` and runs `job` with it: the one place where the
 /// backend is chosen at run time.
 pub fn with_backend<J: WithAccel>(kind: BackendKind, scene: &Scene, job: J) -> Result<J::Output> {
+    with_backend_timed(kind, scene, job).map(|(out, _)| out)
+}
+
+/// [`with_backend`], also returning the seconds the acceleration structure took to build.
+pub fn with_backend_timed<J: WithAccel>(kind: BackendKind, scene: &Scene, job: J) -> Result<(J::Output, f64)> {
     kind.check_available()?;
+    let start = std::time::Instant::now();
     #[cfg(feature = "embree")]
     if matches!(kind, BackendKind::Embree | BackendKind::Auto) {
-        return Ok(job.run(&embree::EmbreeAccel::build(scene)?));
+        let accel = embree::EmbreeAccel::build(scene)?;
+        let built = start.elapsed().as_secs_f64();
+        return Ok((job.run(&accel), built));
     }
-    Ok(job.run(&BvhAccel::build(scene)))
+    let accel = BvhAccel::build(scene);
+    let built = start.elapsed().as_secs_f64();
+    Ok((job.run(&accel), built))
 }

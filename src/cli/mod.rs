@@ -1,6 +1,6 @@
 //! The command line: one file per subcommand; the arguments they share, parsing, and the
 //! dispatch live here.
-use crate::accel::{Accel, BackendKind, WithAccel, with_backend};
+use crate::accel::{Accel, BackendKind, WithAccel, with_backend_timed};
 use crate::film::{self, Image, Metadata};
 use crate::integrator::{
     Estimator, GuideSettings, Jensen, LearnedSettings, LearnedZvidpt, MAX_SUBPIXELS, Mis, PathTracer, Roulette, Zvidpt,
@@ -513,7 +513,8 @@ pub fn render_scene_with_aovs(
     settings: &RenderSettings,
     aovs: bool,
 ) -> Result<(Image, RenderStats, &'static str, Option<Aovs>)> {
-    with_backend(backend, scene, RenderJob { scene, integrator, photon, settings, aovs })?
+    let (out, built) = with_backend_timed(backend, scene, RenderJob { scene, integrator, photon, settings, aovs })?;
+    out.map(|(image, stats, name, aovs)| (image, RenderStats { build_seconds: built, ..stats }, name, aovs))
 }
 
 /// Checks a command's options alone (no file is touched): what `run` checks first.

@@ -151,7 +151,9 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     // be written or would replace what it must not.
     let png = png_destination(&args.output, args.png.as_deref(), args.no_png || args.samples.is_some())?;
     args.machine.backend.check_available()?;
+    let loading = std::time::Instant::now();
     let scene = load_scene(args)?;
+    let load_seconds = loading.elapsed().as_secs_f64();
     let mut outputs = vec![("EXR", args.output.as_path())];
     if let Some(p) = &png {
         outputs.push(("PNG", p.as_path()));
@@ -284,6 +286,13 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     }
     // The images are written: a closed or full standard output no longer fails the command.
     let summary = || -> Result<()> {
+        out!(
+            "scene: {} triangles, loaded in {:.2} s; {backend} built in {:.2} s{}",
+            scene.triangles.len(),
+            load_seconds,
+            stats.build_seconds,
+            crate::io::peak_memory_bytes().map_or(String::new(), |b| format!("; peak memory {} MiB", b >> 20)),
+        );
         if let Some(p) = &stats.prepass {
             out!("pre-pass: {p}");
         }

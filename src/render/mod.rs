@@ -90,6 +90,9 @@ pub struct RenderStats {
     /// Checkpoints written during the render, and the seconds they took (in `seconds`).
     pub checkpoints: u32,
     pub checkpoint_seconds: f64,
+    /// Seconds the ray-tracing backend took to build its acceleration structure (set by the
+    /// caller that built it; not in `seconds`).
+    pub build_seconds: f64,
 }
 
 impl RenderStats {
@@ -440,6 +443,7 @@ fn render_in_pool<A: Accel, I: Integrator>(
         resumed_seconds,
         checkpoints: checkpoints.0,
         checkpoint_seconds: checkpoints.1,
+        build_seconds: 0.0,
         rays,
         threads,
         prepass,

@@ -230,7 +230,46 @@ fn textures_from(path: &Path, d: &SceneDescription) -> Result<Textures> {
     if d.textures.len() > usize::from(u16::MAX) {
         return Err(invalid(path, format!("more than {} textures", u16::MAX)));
     }
+    // Image files are decoded first, in parallel (a scene may hold dozens of megapixels of
+    // JPEG and PNG), each (file, raw) once; errors are reported below in the textures' order.
+    let folder = path.parent().unwrap_or(Path::new("."));
+    let files: Vec<(PathBuf, bool)> = {
+        let mut seen = std::collections::BTreeSet::new();
+        d.textures
+            .values()
+            .filter(|t| t.kind == TextureKind::Bitmap)
+            .filter_map(|t| t.file.as_ref().map(|f| (folder.join(f), t.raw.unwrap_or(false))))
+            .filter(|k| seen.insert(k.clone()))
+            .collect()
+    };
+    let mut uses: HashMap<(PathBuf, bool), usize> = HashMap::new();
+    let distinct: HashMap<String, &super::description::TextureDescription> =
+        d.textures.values().map(|t| (format!("{t:?}"), t)).collect();
+    for t in distinct.values().filter(|t| t.kind == TextureKind::Bitmap) {
+        if let Some(f) = &t.file {
+            *uses.entry((folder.join(f), t.raw.unwrap_or(false))).or_default() += 1;
+        }
+    }
+    let mut reused: HashMap<(PathBuf, bool), Bitmap> = HashMap::new();
+    let mut decoded: HashMap<(PathBuf, bool), Result<Bitmap>> = {
+        use rayon::prelude::*;
+        files
+            .into_par_iter()
+            .map(|(file, raw)| {
+                let bitmap = Bitmap::load(&file, Wrap::Repeat, Filter::Bilinear, raw);
+                ((file, raw), bitmap)
+            })
+            .collect()
+    };
+    // Textures described alike are one texture (importers name one per use of a file).
+    let mut alike: HashMap<String, u16> = HashMap::new();
     for (name, t) in &d.textures {
+        let description = format!("{t:?}");
+        if let Some(&id) = alike.get(&description) {
+            ids.insert(name.clone(), id);
+            continue;
+        }
+        alike.insert(description, textures.len() as u16);
         let err = |m: String| invalid(path, format!("texture `{name}`: {m}"));
         let colour = |key: &str, v: Option<[f32; 3]>, default: f32| {
             let v = v.unwrap_or([default; 3]);
@@ -268,7 +307,7 @@ fn textures_from(path: &Path, d: &SceneDescription) -> Result<Textures> {
                 let Some(file) = &t.file else {
                     return Err(err("a bitmap needs `file`".into()));
                 };
-                let file = path.parent().unwrap_or(Path::new(".")).join(file);
+                let file = folder.join(file);
                 let wrap = match t.wrap {
                     None | Some(WrapDescription::Repeat) => Wrap::Repeat,
                     Some(WrapDescription::Mirror) => Wrap::Mirror,
@@ -278,7 +317,21 @@ fn textures_from(path: &Path, d: &SceneDescription) -> Result<Textures> {
                     None | Some(FilterDescription::Bilinear) => Filter::Bilinear,
                     Some(FilterDescription::Nearest) => Filter::Nearest,
                 };
-                let mut bitmap = Bitmap::load(&file, wrap, filter, t.raw.unwrap_or(false))?;
+                let key = (file.clone(), t.raw.unwrap_or(false));
+                let bitmap = match decoded.remove(&key) {
+                    Some(loaded) => {
+                        let b = loaded?;
+                        if uses.get(&key).is_some_and(|&n| n > 1) {
+                            reused.insert(key, b.clone());
+                        }
+                        b
+                    }
+                    None => match reused.get(&key) {
+                        Some(b) => b.clone(),
+                        None => Bitmap::load(&file, wrap, filter, key.1)?,
+                    },
+                };
+                let mut bitmap = Bitmap { wrap, filter, ..bitmap };
                 if t.v_from_top == Some(true) {
                     bitmap.flip_rows();
                 }
@@ -1575,6 +1628,20 @@ mod tests {
     }
 
     /// `factor` multiplies a texture's values, `invert` then takes `1 − value` (at least 0).
+    #[test]
+    fn textures_described_alike_are_one() {
+        let text = format!(
+            "{HEAD}[textures.a]\ntype = \"checkerboard\"\n\n[textures.b]\ntype = \"checkerboard\"\n\n\
+             [textures.c]\ntype = \"checkerboard\"\ncolor0 = [1.0, 0.0, 0.0]\n\n\
+             [materials.m]\ndiffuse_texture = \"a\"\n\n[materials.n]\ndiffuse_texture = \"b\"\n\n\
+             [materials.o]\ndiffuse_texture = \"c\"\n\n\
+             [[shape]]\ntype = \"rectangle\"\nmaterial = \"m\"\n\n[[shape]]\ntype = \"rectangle\"\nmaterial = \"n\"\n\n\
+             [[shape]]\ntype = \"rectangle\"\nmaterial = \"o\"\n"
+        );
+        let scene = Scene::parse(&text, Path::new("f/scene.toml")).unwrap();
+        assert_eq!(scene.textures.len(), 2, "a and b are one texture, c another");
+    }
+
     #[test]
     fn texture_factor_and_invert() {
         let text = format!(
