@@ -30,8 +30,9 @@ The fidelity z statistic: Tungsten's renders are not converged and carry no vari
 noise of a Tungsten block mean is estimated from the image itself: half the mean squared
 difference of horizontally adjacent pixels (an overestimate where the picture has edges) over
 the block's pixel count. Ours is the variance the renderer writes. z = (ours - tungsten) /
-sqrt(var_ours + var_tungsten) per block and channel; blocks whose Tungsten mean is below 1e-4
-of the image mean are skipped.
+sqrt(var_ours + var_tungsten + (1e-4 mean)^2) per block and channel (the floor: emitters seen
+directly are noise-free in both); blocks whose Tungsten mean is below 1e-4 of the image mean
+are skipped.
 """
 import argparse
 import os
@@ -254,7 +255,8 @@ def cmd_fidelity(a):
         noise = np.concatenate([d, d[:, -1:]], 1) ** 2 / 2
         var_tung = noise.reshape(bh, b, bw, b, 3).mean((1, 3)) / (b * b)
         keep = (tung_b > 1e-4 * tung.mean()) & ~blk(bad[..., None].repeat(3, -1).astype(float)).astype(bool)
-        z = (ours_b - tung_b) / np.sqrt(var_ours + var_tung + 1e-30)
+        # A floor of 1e-4 of the block's mean: emitters seen directly are noise-free in both.
+        z = (ours_b - tung_b) / np.sqrt(var_ours + var_tung + (1e-4 * tung_b) ** 2 + 1e-30)
         z = z[keep]
         print(f"| {name} | {w}x{h}, {a.spp} | {ratio[0]:.3f}, {ratio[1]:.3f}, {ratio[2]:.3f} | {z.size} | "
               f"{np.abs(z).max():.1f} | {np.sqrt((z ** 2).mean()):.2f} | {secs:.0f} |", flush=True)
