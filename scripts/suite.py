@@ -1,0 +1,169 @@
+"""A benchmark suite: a folder of scenes x integrators at equal time against per-scene
+references, as one table.
+
+    python3 scripts/suite.py SCENES OUT [--time 20] [--resolution 160x90 | --downscale 8] [--ref-spp 4096]
+        [--seeds 1,2] [--integrators "path;zvidpt;jensen --learned-guide on"] [--zvidpt BIN]
+
+SCENES is a folder of scene folders; each is a scene zvidpt opens (scene.toml, scene.xml or
+scene.pbrt inside, or pbrt/scene-v4.pbrt as in Bitterli's collection). For each scene:
+
+1. a reference, `zvidpt reference` with `path` at --ref-spp (OUT/refs/NAME.exr; kept and
+   reused while the scene's content hash and spp match);
+2. every integrator (a `zvidpt render` flag string; `;` between them) for --time seconds per
+   seed, its MSE against the reference (`zvidpt diff`).
+
+Writes OUT/suite.csv (a row per scene, integrator and seed: seconds, spp, MSE, relMSE),
+OUT/suite.md (per scene the mean MSE of each integrator and its ratio to the first one's, and
+the geometric mean of those ratios over the scenes), and OUT/suite.png (MSE per scene and
+integrator, log scale) when matplotlib is installed. Equal time means equal wall-clock
+seconds of rendering on the same machine and threads, training and pre-passes included.
+"""
+import argparse
+import csv
+import math
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+DEFAULT_BIN = HERE.parent / "target" / "release" / "zvidpt"
+
+
+def scene_file(d):
+    for name in ("scene.toml", "scene.xml", "scene.pbrt", "pbrt/scene-v4.pbrt"):
+        if (d / name).is_file():
+            return d / name
+    return None
+
+
+def resolution(f, default, downscale):
+    """The scene's own size over `downscale`: its Tungsten render's where it has one (the
+    collection's files sometimes cut the film: cornell-box states 64x64), else a pbrt film's."""
+    tungsten = f.parent / "TungstenRender.exr"
+    if downscale and tungsten.is_file():
+        try:
+            import OpenEXR
+            dw = OpenEXR.InputFile(str(tungsten)).header()["dataWindow"]
+            w, h = dw.max.x - dw.min.x + 1, dw.max.y - dw.min.y + 1
+            return f"{max(1, w // downscale)}x{max(1, h // downscale)}"
+        except ImportError:
+            pass
+    if downscale and f.suffix == ".pbrt":
+        text = f.read_text(errors="replace")
+        xs = re.search(r'"integer xresolution"\s*\[?\s*(\d+)', text)
+        ys = re.search(r'"integer yresolution"\s*\[?\s*(\d+)', text)
+        if xs and ys:
+            return f"{max(1, int(xs.group(1)) // downscale)}x{max(1, int(ys.group(1)) // downscale)}"
+    return default
+
+
+def run(args):
+    r = subprocess.run([str(a) for a in args], capture_output=True, text=True)
+    if r.returncode != 0:
+        err = [l for l in r.stderr.splitlines() if l.startswith("error:")]
+        raise RuntimeError(err[-1] if err else r.stderr.strip()[-300:])
+    return r.stdout
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("scenes")
+    p.add_argument("out")
+    p.add_argument("--time", type=float, default=20)
+    p.add_argument("--resolution", default="160x90")
+    p.add_argument("--downscale", type=int, default=0,
+                   help="pbrt scenes: their film size over this factor instead of --resolution")
+    p.add_argument("--ref-spp", type=int, default=4096)
+    p.add_argument("--seeds", default="1,2")
+    p.add_argument("--integrators", default="path;zvidpt;jensen --learned-guide on")
+    p.add_argument("--only", help="comma-separated scene names")
+    p.add_argument("--zvidpt", default=str(DEFAULT_BIN))
+    a = p.parse_args()
+    out = Path(a.out)
+    (out / "refs").mkdir(parents=True, exist_ok=True)
+    integrators = [s.strip() for s in a.integrators.split(";") if s.strip()]
+    seeds = [s.strip() for s in a.seeds.split(",") if s.strip()]
+    only = set(a.only.split(",")) if a.only else None
+    rows = []
+    scenes = []
+    for d in sorted(Path(a.scenes).iterdir()):
+        f = scene_file(d) if d.is_dir() else None
+        if f is None or (only and d.name not in only):
+            continue
+        name = d.name
+        res = resolution(f, a.resolution, a.downscale)
+        ref = out / "refs" / f"{name}.exr"
+        try:
+            run([a.zvidpt, "reference", f, "--spp", a.ref_spp, "--resolution", res, "-o", ref, "-q"])
+        except RuntimeError as e:
+            print(f"{name}: reference failed: {e}", file=sys.stderr)
+            continue
+        scenes.append(name)
+        for integ in integrators:
+            tag = re.sub(r"[^A-Za-z0-9]+", "-", integ).strip("-")
+            for seed in seeds:
+                img = out / name / f"{tag}-{seed}.exr"
+                img.parent.mkdir(parents=True, exist_ok=True)
+                try:
+                    line = run([a.zvidpt, "render", f, "--integrator", *integ.split(),
+                                "--time", a.time, "--seed", seed, "--resolution", res, "-o", img, "--no-png"])
+                    m = re.search(r"(\d+) spp.*?, ([\d.]+) s,", line.splitlines()[-1])
+                    d = run([a.zvidpt, "diff", img, ref])
+                    mse, rel = re.search(r"MSE (\S+)\s+relMSE (\S+)", d).groups()
+                    rows.append(dict(scene=name, integrator=integ, seed=seed, seconds=m.group(2), spp=m.group(1),
+                                     mse=float(mse), relmse=float(rel)))
+                    print(f"{name} | {integ} | seed {seed}: MSE {float(mse):.4g} ({m.group(1)} spp)", flush=True)
+                except RuntimeError as e:
+                    print(f"{name} | {integ} | seed {seed}: failed: {e}", file=sys.stderr)
+    with open(out / "suite.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=["scene", "integrator", "seed", "seconds", "spp", "mse", "relmse"])
+        w.writeheader()
+        w.writerows(rows)
+    mean = {}
+    for r in rows:
+        mean.setdefault((r["scene"], r["integrator"]), []).append(r["mse"])
+    mean = {k: sum(v) / len(v) for k, v in mean.items()}
+    base = integrators[0]
+    lines = [f"Equal time {a.time:g} s per render, {a.resolution}, seeds {a.seeds}; MSE against `path` at "
+             f"{a.ref_spp} spp; ratio = {base}'s MSE / the integrator's (above 1: better than {base}).", "",
+             "| scene | " + " | ".join(f"{i} MSE" for i in integrators) + " | " +
+             " | ".join(f"{base} / {i}" for i in integrators[1:]) + " |",
+             "|---|" + "---|" * (2 * len(integrators) - 1)]
+    logs = {i: [] for i in integrators[1:]}
+    for s in scenes:
+        cells = [f"{mean[(s, i)]:.4g}" if (s, i) in mean else "-" for i in integrators]
+        ratios = []
+        for i in integrators[1:]:
+            if (s, i) in mean and (s, base) in mean and mean[(s, i)] > 0:
+                r = mean[(s, base)] / mean[(s, i)]
+                logs[i].append(math.log(r))
+                ratios.append(f"{r:.2f}")
+            else:
+                ratios.append("-")
+        lines.append(f"| {s} | " + " | ".join(cells + ratios) + " |")
+    geo = [f"{math.exp(sum(v) / len(v)):.2f}" if v else "-" for v in logs.values()]
+    lines.append("| geometric mean | " + " | ".join([""] * len(integrators) + geo) + " |")
+    (out / "suite.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        fig, ax = plt.subplots(figsize=(max(6, len(scenes) * 1.2), 4))
+        width = 0.8 / len(integrators)
+        for k, i in enumerate(integrators):
+            ax.bar([x + k * width for x in range(len(scenes))], [mean.get((s, i), float("nan")) for s in scenes],
+                   width, label=i)
+        ax.set_yscale("log")
+        ax.set_xticks([x + 0.4 - width / 2 for x in range(len(scenes))], scenes, rotation=30, ha="right")
+        ax.set_ylabel(f"MSE at {a.time:g} s")
+        ax.legend()
+        fig.tight_layout()
+        fig.savefig(out / "suite.png", dpi=100)
+    except ImportError:
+        print("(matplotlib not installed: no suite.png)", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
