@@ -108,7 +108,7 @@ def main():
                 try:
                     line = run([a.zvidpt, "render", f, "--integrator", *integ.split(),
                                 "--time", a.time, "--seed", seed, "--resolution", res, "-o", img, "--no-png"])
-                    m = re.search(r"(\d+) spp.*?, ([\d.]+) s,", line.splitlines()[-1])
+                    m = re.search(r"(\d+) spp.*?, ([\d.]+) s\b", line.splitlines()[-1])
                     d = run([a.zvidpt, "diff", img, ref])
                     mse, rel = re.search(r"MSE (\S+)\s+relMSE (\S+)", d).groups()
                     rows.append(dict(scene=name, integrator=integ, seed=seed, seconds=m.group(2), spp=m.group(1),
