@@ -78,6 +78,9 @@ def main():
     p.add_argument("--seeds", default="1,2")
     p.add_argument("--integrators", default="path;zvidpt;jensen --learned-guide on")
     p.add_argument("--only", help="comma-separated scene names")
+    p.add_argument("--max-depth", type=int, default=0,
+                   help="every render's and the reference's depth in segments (the learned integrator has no "
+                        "depth limit: give one this large to compare unbiased images of the same light)")
     p.add_argument("--zvidpt", default=str(DEFAULT_BIN))
     a = p.parse_args()
     out = Path(a.out)
@@ -94,8 +97,15 @@ def main():
         name = d.name
         res = resolution(f, a.resolution, a.downscale)
         ref = out / "refs" / f"{name}.exr"
+        depth = ["--max-depth", a.max_depth] if a.max_depth else []
         try:
-            run([a.zvidpt, "reference", f, "--spp", a.ref_spp, "--resolution", res, "-o", ref, "-q"])
+            if depth:
+                # `reference` keeps the scene's depth: a render of that depth instead.
+                if not ref.exists():
+                    run([a.zvidpt, "render", f, "--integrator", "path", "--spp", a.ref_spp, "--resolution", res,
+                         *depth, "-o", ref, "--no-png", "-q"])
+            else:
+                run([a.zvidpt, "reference", f, "--spp", a.ref_spp, "--resolution", res, "-o", ref, "-q"])
         except RuntimeError as e:
             print(f"{name}: reference failed: {e}", file=sys.stderr)
             continue
@@ -107,7 +117,7 @@ def main():
                 img.parent.mkdir(parents=True, exist_ok=True)
                 try:
                     line = run([a.zvidpt, "render", f, "--integrator", *integ.split(),
-                                "--time", a.time, "--seed", seed, "--resolution", res, "-o", img, "--no-png"])
+                                "--time", a.time, "--seed", seed, "--resolution", res, *depth, "-o", img, "--no-png"])
                     m = re.search(r"(\d+) spp.*?, ([\d.]+) s\b", line.splitlines()[-1])
                     d = run([a.zvidpt, "diff", img, ref])
                     mse, rel = re.search(r"MSE (\S+)\s+relMSE (\S+)", d).groups()
