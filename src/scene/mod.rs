@@ -1160,19 +1160,19 @@ fn barycentrics_along(x: Vec3A, w: Vec3A, v: &[Vec3A; 3]) -> Option<[f32; 3]> {
 fn texel_digest(texels: &[Vec3A]) -> u64 {
     use rayon::prelude::*;
     const PRIME: u64 = 0x0000_0100_0000_01b3;
-    let fnv =
-        |words: &mut dyn Iterator<Item = u64>| words.fold(0xcbf2_9ce4_8422_2325u64, |h, w| (h ^ w).wrapping_mul(PRIME));
+    fn fnv(words: impl Iterator<Item = u64>) -> u64 {
+        words.fold(0xcbf2_9ce4_8422_2325u64, |h, w| (h ^ w).wrapping_mul(PRIME))
+    }
     let chunks: Vec<u64> = texels
         .par_chunks(1 << 16)
         .map(|c| {
-            let mut words = c.iter().flat_map(|v| {
+            fnv(c.iter().flat_map(|v| {
                 let [r, g, b] = v.to_array().map(f32::to_bits);
                 [u64::from(r) | u64::from(g) << 32, u64::from(b)]
-            });
-            fnv(&mut words)
+            }))
         })
         .collect();
-    fnv(&mut chunks.into_iter())
+    fnv(chunks.into_iter())
 }
 
 #[cfg(test)]
