@@ -37,7 +37,10 @@ fn every_integrator_sees_the_plane_at_half_the_environment() {
     for estimator in [Estimator::Terminal, Estimator::Collision] {
         assert!(z(&format!("{estimator:?}"), &mut Zvidpt::new(estimator, GuideSettings::default())).abs() < 4.0);
     }
-    assert!(z("zvidpt", &mut LearnedZvidpt::new(LearnedSettings::default())).abs() < 4.0);
+    for mis in [Mis::Glossy, Mis::All, Mis::Off] {
+        let settings = LearnedSettings { mis, ..LearnedSettings::default() };
+        assert!(z(&format!("zvidpt --mis {mis:?}"), &mut LearnedZvidpt::new(settings)).abs() < 4.0);
+    }
     assert!(z("path scaled by 0.98", &mut Scaled(PathTracer::default(), 0.98)).abs() >= 4.0);
 }
 

@@ -67,3 +67,14 @@ fn learned_integrators_agree_with_path() {
     let albedo = LearnedSettings { roulette: Roulette::Albedo, control_variate: false, ..LearnedSettings::default() };
     agrees("jensen --learned-guide", &mut LearnedZvidpt::new(albedo), 2048);
 }
+
+/// The learned walk weighs light its own directions find against NEE with the density of the
+/// mixture it sampled (tree, source box, cosine; BSDF and tree at glossy vertices): every
+/// weighting counts each light path once.
+#[test]
+fn learned_integrator_agrees_with_path_under_every_mis_weighting() {
+    for mis in [Mis::All, Mis::Off] {
+        let settings = LearnedSettings { mis, ..LearnedSettings::default() };
+        agrees(&format!("zvidpt --mis {mis:?}"), &mut LearnedZvidpt::new(settings), 2048);
+    }
+}

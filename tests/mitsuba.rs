@@ -6,7 +6,7 @@ use common::cli::{scratch, text, zvidpt};
 use std::path::{Path, PathBuf};
 use zvidpt::film::{Image, read_exr};
 use zvidpt::geometry::Vec2;
-use zvidpt::integrator::PathTracer;
+use zvidpt::integrator::{LearnedSettings, LearnedZvidpt, PathTracer};
 use zvidpt::scene::Scene;
 use zvidpt::scene::import::ImportOptions;
 
@@ -150,7 +150,7 @@ fn ply_and_textured_roughness_as_mitsuba() {
 /// Mitsuba's `max_depth` is ours: the box at depth 3 (emission, direct light and one bounce)
 /// against Mitsuba's image at depth 3 (16 × 1024 spp), same test and bound as above. An
 /// off-by-one in the depth moves whole blocks by tens of standard errors. Depth 0 is black;
-/// depth 1 only the light seen directly.
+/// depth 1 only the light seen directly. The same for `path` and the learned integrator.
 #[test]
 fn max_depth_counts_as_mitsubas() {
     let options = ImportOptions { defines: vec![("max_depth".into(), "3".into())], strict: true };
@@ -160,16 +160,24 @@ fn max_depth_counts_as_mitsubas() {
     let reference = Image { spp: 1, ..reference };
     let (z, _) = common::max_block_z_both(&ours, &reference, 8);
     assert!(z < 4.5, "largest block |z| {z:.2} against Mitsuba 3's depth-3 image");
+    // The learned integrator counts the same paths (its walk splits and learns, its depth is
+    // the same).
+    let learned = common::render_bvh(&scene, &mut LearnedZvidpt::new(LearnedSettings::default()), 1024, 1);
+    let (z, _) = common::max_block_z_both(&learned, &reference, 8);
+    assert!(z < 4.5, "zvidpt: largest block |z| {z:.2} against Mitsuba 3's depth-3 image");
     for depth in [0, 1] {
         let mut s = scene.clone();
         s.render.max_depth = Some(depth);
-        let image = common::render_bvh(&s, &mut PathTracer::default(), 4, 1);
+        let path = common::render_bvh(&s, &mut PathTracer::default(), 4, 1);
+        let learned = common::render_bvh(&s, &mut LearnedZvidpt::new(LearnedSettings::default()), 4, 1);
         let light = [12.0f32, 11.0, 9.0];
-        for p in &image.pixels {
-            let seen_light = p.iter().zip(light).all(|(a, b)| (a / b - p[0] / 12.0).abs() < 1e-5);
-            assert!(*p == [0.0; 3] || (depth == 1 && seen_light), "depth {depth}: pixel {p:?}");
+        for (name, image) in [("path", &path), ("zvidpt", &learned)] {
+            for p in &image.pixels {
+                let seen_light = p.iter().zip(light).all(|(a, b)| (a / b - p[0] / 12.0).abs() < 1e-5);
+                assert!(*p == [0.0; 3] || (depth == 1 && seen_light), "{name}, depth {depth}: pixel {p:?}");
+            }
+            assert_eq!(image.pixels.iter().any(|p| p[0] > 0.0), depth == 1, "{name}, depth {depth}");
         }
-        assert_eq!(image.pixels.iter().any(|p| p[0] > 0.0), depth == 1);
     }
 }
 

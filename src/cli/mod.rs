@@ -148,7 +148,8 @@ pub struct SceneArgs {
     #[arg(long)]
     pub strict: bool,
     /// The longest path counted, in segments (1: emitters seen directly; 2: direct light)
-    /// [default: the scene's (Mitsuba's `max_depth`), else unbounded]. path and jensen only.
+    /// [default: the scene's (Mitsuba's `max_depth`), else unbounded]. path, jensen and zvidpt
+    /// (the paper's zvidpt-terminal and zvidpt-collision count paths of every length).
     #[arg(long, value_name = "N")]
     pub max_depth: Option<u32>,
 }
@@ -177,9 +178,10 @@ pub struct PhotonArgs {
     /// light; the estimate is the same, the noise lower).
     #[arg(long, value_enum, default_value_t = LightSampling::SolidAngle)]
     pub light_sampling: LightSampling,
-    /// path: where light found by BSDF sampling is weighed against NEE by multiple importance
-    /// sampling: at surfaces that are not Lambertian (where NEE alone is nearly ideal it only
-    /// adds noise), everywhere, or nowhere.
+    /// path and the learned integrators (zvidpt, jensen --learned-guide on): where light found
+    /// by the sampled directions is weighed against NEE by multiple importance sampling: at
+    /// surfaces that are not Lambertian (where NEE alone is nearly ideal it only adds noise),
+    /// everywhere, or nowhere.
     #[arg(long, value_enum, default_value_t = Mis::Glossy)]
     pub mis: Mis,
     /// Photons stored by the photon pass (jensen, zvidpt-*; the paper used 6891).
@@ -306,6 +308,7 @@ impl PhotonArgs {
             max_split: self.max_split,
             control_variate: self.roulette_cv == Switch::On && roulette != Roulette::Albedo,
             train_spp: self.train_spp,
+            mis: self.mis,
         }
     }
 
@@ -394,6 +397,7 @@ impl PhotonArgs {
             meta.push("window", self.window);
             meta.push("max_split", self.max_split);
             meta.push("roulette_cv", flag_name(self.roulette_cv));
+            meta.push("mis", flag_name(self.mis));
         }
     }
 }

@@ -173,10 +173,10 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         warn!("warning: {w}");
     }
     if let Some(d) = scene.render.max_depth
-        && !matches!(args.integrator, IntegratorKind::Path | IntegratorKind::Jensen)
+        && !matches!(args.integrator, IntegratorKind::Path | IntegratorKind::Jensen | IntegratorKind::Zvidpt)
     {
         warn!(
-            "warning: a max depth ({d}) is honoured by path and jensen only: {:?} counts paths of every length",
+            "warning: a max depth ({d}) is honoured by path, jensen and zvidpt only: {:?} counts paths of every length",
             args.integrator
         );
     }

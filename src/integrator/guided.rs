@@ -204,6 +204,25 @@ impl Guide {
 /// times a Lambertian lobe; the BSDF's sampling follows a glossy lobe).
 pub const BSDF_SHARE: f32 = 0.5;
 
+/// Roughness below which a glossy lobe is too narrow for a learned density to sample it: a
+/// direction the guide picks almost never falls in a lobe of this width.
+pub const GUIDE_MIN_ALPHA: f32 = 0.1;
+
+/// Whether the learned integrator mixes its guide into the sampling of `bsdf`: not where
+/// every lobe is delta or near-specular (a glossy lobe narrower than [`GUIDE_MIN_ALPHA`]);
+/// a plastic's diffuse base is always worth guiding.
+#[inline]
+#[must_use]
+pub fn guides_at(bsdf: &crate::material::Bsdf) -> bool {
+    use crate::material::Bsdf;
+    let rough = |r: &Option<crate::material::microfacet::Microfacet>| r.is_some_and(|m| m.alpha >= GUIDE_MIN_ALPHA);
+    match bsdf {
+        Bsdf::Diffuse { .. } | Bsdf::Plastic { .. } => true,
+        Bsdf::Conductor { roughness, .. } => rough(roughness),
+        Bsdf::Dielectric { roughness, thin, .. } => !thin && rough(roughness),
+    }
+}
+
 /// A direction at a vertex that is not Lambertian: the BSDF's own sampling on a pure delta
 /// surface; elsewhere a one-sample mixture, the BSDF's sampling with probability
 /// [`BSDF_SHARE`] and `guide` (a sampler and its density, both in local directions of

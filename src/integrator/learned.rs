@@ -20,9 +20,11 @@
 //! `--roulette q` uses the paper's `q = L̃1/L̃r` (learned) instead, and `--roulette albedo`
 //! the path tracer's rule: with it, this is PPG-style guided path tracing
 //! (`--integrator jensen --learned-guide on`).
-use super::guided::sample_mixture;
-use super::path::survival_probability;
-use super::{Integrator, MisAt, PriorSamples, RenderContext, Scratch, direct_light, sample_bsdf};
+use super::guided::{BSDF_SHARE, guides_at, sample_mixture};
+use super::path::{Mis, survival_probability};
+use super::{
+    Integrator, PriorSamples, RenderContext, Scratch, direct_light_against, nee_strategy, power_heuristic, sample_bsdf,
+};
 use crate::Result;
 use crate::accel::Accel;
 use crate::geometry::{Frame, UVec2, Vec3A, luminance, warp};
@@ -83,6 +85,11 @@ pub struct LearnedSettings {
     /// Training samples per pixel in all (iterations 1, 2, 4, … while they fit); `None`: half
     /// the final sample count, or by the time budget's rule under `--time`.
     pub train_spp: Option<u32>,
+    /// Where light that the walk's own directions find is weighed against NEE (power
+    /// heuristic, with the density of the mixture actually sampled): as `path`'s `--mis`.
+    /// Glossy vertices without it (NEE alone) were the learned integrators' fireflies on
+    /// near-specular coats (Bitterli's coffee and veach-mis).
+    pub mis: Mis,
 }
 
 impl Default for LearnedSettings {
@@ -100,6 +107,7 @@ impl Default for LearnedSettings {
             control_variate: true,
             box_mix: 0.3,
             train_spp: None,
+            mis: Mis::Glossy,
         }
     }
 }
@@ -209,13 +217,34 @@ impl LearnedZvidpt {
         let Some(albedo) = si.material.lambertian() else {
             return self.reflected_bsdf(ctx, guide, si, weight, reference, depth, branches, rng, scratch, deposits);
         };
-        if albedo == Vec3A::ZERO {
+        // Light reaching this vertex ends a path of `depth + 2` segments.
+        if albedo == Vec3A::ZERO || depth.saturating_add(2) > ctx.max_depth {
             return Vec3A::ZERO;
         }
         let frame = Frame::from_normal(si.n);
-        let direct = direct_light(ctx, si, &frame, frame.to_local(si.wo), MisAt::NONE, rng, scratch);
         let cell = guide.cell(si.p, si.n);
         let est = guide.estimate(cell);
+        let alpha = guide.mix(cell);
+        let learning = deposits.is_some();
+        let tree = alpha > 0.0 || (learning && guide.has_tree(cell));
+        // The source box, sampled first with probability `beta`; else the mixture of the
+        // tree (`alpha`) and cosine sampling.
+        let source = guide.source_box(cell).copied();
+        let beta = if source.is_some() { guide.box_share(cell) } else { 0.0 };
+        let weigh = self.settings.mis.at(&si.material);
+        // NEE weighed against the density of the directions sampled below.
+        let density = |local: Vec3A, wi: Vec3A| {
+            if local.z <= 0.0 {
+                return 0.0;
+            }
+            let learned = if tree { guide.pdf(cell, local) } else { 0.0 };
+            let box_pdf = match source {
+                Some(b) if beta > 0.0 => b.pdf(si.p, wi),
+                _ => 0.0,
+            };
+            beta * box_pdf + (1.0 - beta) * mixture_pdf(alpha, learned, local.z)
+        };
+        let direct = direct_light_against(ctx, si, &frame, frame.to_local(si.wo), weigh, rng, scratch, density);
         let mut f = self.continuation(albedo, weight, reference, est, depth);
         if f > 1.0 && (depth >= 16 || branches * (f.ceil() as u32) > MAX_BRANCHES) {
             f = 1.0;
@@ -225,13 +254,6 @@ impl LearnedZvidpt {
         let n = f.floor() as u32 + u32::from(u < f - f.floor());
         let mut indirect = Vec3A::ZERO;
         if n > 0 {
-            let alpha = guide.mix(cell);
-            let learning = deposits.is_some();
-            let tree = alpha > 0.0 || (learning && guide.has_tree(cell));
-            // The source box, sampled first with probability `beta`; else the mixture of the
-            // tree (`alpha`) and cosine sampling.
-            let source = guide.source_box(cell).copied();
-            let beta = if source.is_some() { guide.box_share(cell) } else { 0.0 };
             for _ in 0..n {
                 let u_pick = rng.next_f32();
                 let u_dir = rng.next_2d();
@@ -279,7 +301,8 @@ impl LearnedZvidpt {
                     Some(hit) => {
                         let next = ctx.scene.interaction(&ray, &hit);
                         source_point = Some(next.p);
-                        self.reflected(
+                        let seen = if weigh.surfaces { self.found_emission(ctx, si, &next, pdf) } else { Vec3A::ZERO };
+                        seen + self.reflected(
                             ctx,
                             guide,
                             &next,
@@ -292,6 +315,7 @@ impl LearnedZvidpt {
                             deposits.as_deref_mut(),
                         )
                     }
+                    None if weigh.environment => found_environment(ctx, wi, pdf),
                     None => Vec3A::ZERO,
                 };
                 indirect += throughput * li;
@@ -344,24 +368,32 @@ impl LearnedZvidpt {
         deposits: Option<&mut Deposits>,
     ) -> Vec3A {
         let albedo = si.material.albedo();
-        if albedo == Vec3A::ZERO {
+        if albedo == Vec3A::ZERO || depth.saturating_add(2) > ctx.max_depth {
             return Vec3A::ZERO;
         }
         let frame = si.bsdf_frame();
         let wi = frame.to_local(si.wo);
-        let direct = if si.material.bsdf.is_delta() {
+        let cell = guide.cell(si.p, si.n);
+        let guide_frame = si.gather_frame(&frame);
+        let bsdf = &si.material.bsdf;
+        let guided = guides_at(bsdf) && guide.has_tree(cell);
+        let weigh = self.settings.mis.at(&si.material);
+        let direct = if bsdf.is_delta() {
             Vec3A::ZERO
         } else {
-            direct_light(ctx, si, &frame, wi, MisAt::NONE, rng, scratch)
+            // NEE weighed against the density of the directions sampled below.
+            let density = |local: Vec3A, w: Vec3A| {
+                let p = bsdf.pdf(wi, local);
+                if guided { BSDF_SHARE * p + (1.0 - BSDF_SHARE) * guide.pdf(cell, guide_frame.to_local(w)) } else { p }
+            };
+            direct_light_against(ctx, si, &frame, wi, weigh, rng, scratch, density)
         };
         let q = if depth >= 3 { survival_probability(albedo) } else { 1.0 };
         let q = if depth >= 32 { q.min(0.8) } else { q };
         if rng.next_f32() >= q {
             return direct;
         }
-        let cell = guide.cell(si.p, si.n);
-        let guide_frame = si.gather_frame(&frame);
-        let scatter = if guide.has_tree(cell) {
+        let scatter = if guided {
             sample_mixture(
                 si,
                 &frame,
@@ -381,11 +413,24 @@ impl LearnedZvidpt {
         let ray = si.spawn_ray(s.dir);
         scratch.rays += 1;
         let Some(hit) = ctx.accel.intersect(&ray) else {
-            // The environment behind a delta lobe (NEE counts it elsewhere).
-            return if s.delta { direct + throughput * ctx.scene.environment(s.dir) } else { direct };
+            // The environment: all of it behind a delta lobe, else its share against NEE.
+            let env = if s.delta {
+                ctx.scene.environment(s.dir)
+            } else if weigh.environment {
+                found_environment(ctx, s.dir, s.pdf)
+            } else {
+                Vec3A::ZERO
+            };
+            return direct + throughput * env;
         };
         let next = ctx.scene.interaction(&ray, &hit);
-        let seen = if s.delta { next.emitted() } else { Vec3A::ZERO };
+        let seen = if s.delta {
+            next.emitted()
+        } else if weigh.surfaces {
+            self.found_emission(ctx, si, &next, s.pdf)
+        } else {
+            Vec3A::ZERO
+        };
         let li = seen
             + self.reflected(
                 ctx,
@@ -400,6 +445,24 @@ impl LearnedZvidpt {
                 deposits,
             );
         direct + throughput * li
+    }
+
+    /// Emission at `next` found by a direction of density `pdf` sampled at `si`, weighed
+    /// against NEE's density of the same point (power heuristic).
+    #[inline]
+    fn found_emission<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        si: &SurfaceInteraction,
+        next: &SurfaceInteraction,
+        pdf: f32,
+    ) -> Vec3A {
+        let emitted = next.emitted();
+        if emitted == Vec3A::ZERO {
+            return emitted;
+        }
+        let strategy = nee_strategy(ctx.light_sampling, si);
+        emitted * power_heuristic(pdf, ctx.scene.emitter_pdf(si.p, si.n, strategy, next.prim, next.p))
     }
 
     /// The pixel's reference indirect radiance (summed over channels) for the weight window:
@@ -443,6 +506,10 @@ impl LearnedZvidpt {
     ) -> Vec3A {
         let ray = ctx.scene.camera.ray(ctx.scene.camera.film_point(pixel, rng.pixel_2d()));
         scratch.rays += 1;
+        // Paths of at most `max_depth` segments: the camera's is the first.
+        if ctx.max_depth == 0 {
+            return Vec3A::ZERO;
+        }
         let Some(hit) = ctx.accel.intersect(&ray) else {
             return ctx.scene.environment(ray.dir);
         };
@@ -513,6 +580,13 @@ impl LearnedZvidpt {
     }
 }
 
+/// The environment seen along `dir`, sampled with density `pdf`, weighed against NEE's.
+#[inline]
+fn found_environment<A: Accel>(ctx: &RenderContext<A>, dir: Vec3A, pdf: f32) -> Vec3A {
+    let env = ctx.scene.environment(dir);
+    if env == Vec3A::ZERO { env } else { env * power_heuristic(pdf, ctx.scene.environment_pdf(dir)) }
+}
+
 impl Integrator for LearnedZvidpt {
     type PixelState = f32;
 
@@ -572,6 +646,7 @@ impl Integrator for LearnedZvidpt {
             prior.add_pass(spp, &sum, &sum_sq);
             self.iterations.push(Iteration { spp, seconds: t.elapsed().as_secs_f64() });
         }
+        prior.finish();
         self.prior = (!prior.is_empty()).then_some(prior);
         let stats = guide.stats();
         self.guide = Some(guide);

@@ -38,7 +38,7 @@ pub struct RenderContext<'a, A: Accel> {
     /// [`Scene::lambertian_only`], once per render.
     pub lambertian_only: bool,
     /// The longest path counted, in segments (`u32::MAX`: unbounded): the scene's
-    /// `max_depth` (Mitsuba's), honoured by `path` and `jensen`.
+    /// `max_depth` (Mitsuba's), honoured by `path`, `jensen` and the learned integrator.
     pub max_depth: u32,
 }
 
@@ -189,6 +189,25 @@ pub fn direct_light<A: Accel>(
     rng: &mut SampleStream,
     scratch: &mut Scratch,
 ) -> Vec3A {
+    let bsdf = &si.material.bsdf;
+    direct_light_against(ctx, si, frame, wi, mis, rng, scratch, |local, _| bsdf.pdf(wi, local))
+}
+
+/// [`direct_light`] weighed by MIS against a direction sampler other than the BSDF's own:
+/// `dir_pdf(local, world)` is that sampler's solid-angle density of a direction (given in
+/// `frame` and in world space), the density its own hits of emission are weighed with.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+pub fn direct_light_against<A: Accel>(
+    ctx: &RenderContext<A>,
+    si: &SurfaceInteraction,
+    frame: &Frame,
+    wi: Vec3A,
+    mis: MisAt,
+    rng: &mut SampleStream,
+    scratch: &mut Scratch,
+    dir_pdf: impl FnOnce(Vec3A, Vec3A) -> f32,
+) -> Vec3A {
     let u_pick = rng.next_f32();
     let u_point = rng.next_2d();
     let bsdf = &si.material.bsdf;
@@ -237,5 +256,5 @@ pub fn direct_light<A: Accel>(
         return value;
     }
     let local = if si.material.lambertian().is_some() { frame.to_local(dir) } else { local };
-    value * power_heuristic(1.0 / light.inv_pdf, bsdf.pdf(wi, local))
+    value * power_heuristic(1.0 / light.inv_pdf, dir_pdf(local, dir))
 }
