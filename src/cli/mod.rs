@@ -257,6 +257,11 @@ pub struct PhotonArgs {
     /// it: unbiased, and no roulette noise where L̃ is exact) instead of 0.
     #[arg(long, value_enum, default_value_t = Switch::On)]
     pub roulette_cv: Switch,
+    /// zvidpt and jensen --learned-guide on: measure the path tracer during training (an
+    /// 4-spp probe) and let it render the rest where the learned walk's variance times cost
+    /// per sample is higher (on), or always keep the learned walk (off).
+    #[arg(long, value_enum, default_value_t = Switch::On)]
+    pub fallback: Switch,
     /// jensen: guide with the learned importance function (PPG-style guided path tracing)
     /// instead of the photon grid.
     #[arg(long, value_enum, default_value_t = Switch::Off)]
@@ -289,6 +294,7 @@ impl PhotonArgs {
             window: 5.0,
             max_split: 8,
             roulette_cv: Switch::On,
+            fallback: Switch::On,
             learned_guide: Switch::Off,
         }
     }
@@ -307,6 +313,7 @@ impl PhotonArgs {
             window: self.window,
             max_split: self.max_split,
             control_variate: self.roulette_cv == Switch::On && roulette != Roulette::Albedo,
+            fallback: self.fallback == Switch::On,
             train_spp: self.train_spp,
             mis: self.mis,
         }
@@ -398,6 +405,7 @@ impl PhotonArgs {
             meta.push("max_split", self.max_split);
             meta.push("roulette_cv", flag_name(self.roulette_cv));
             meta.push("mis", flag_name(self.mis));
+            meta.push("fallback", flag_name(self.fallback));
         }
     }
 }

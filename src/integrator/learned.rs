@@ -21,7 +21,8 @@
 //! the path tracer's rule: with it, this is PPG-style guided path tracing
 //! (`--integrator jensen --learned-guide on`).
 use super::guided::{BSDF_SHARE, guides_at, sample_mixture};
-use super::path::{Mis, survival_probability};
+use super::passes::mean_variance;
+use super::path::{Mis, PathTracer, survival_probability};
 use super::{
     Integrator, PriorSamples, RenderContext, Scratch, direct_light_against, nee_strategy, power_heuristic, sample_bsdf,
 };
@@ -90,6 +91,9 @@ pub struct LearnedSettings {
     /// Glossy vertices without it (NEE alone) were the learned integrators' fireflies on
     /// near-specular coats (Bitterli's coffee and veach-mis).
     pub mis: Mis,
+    /// Measure the path tracer during training and render with it instead where the learned
+    /// walk is less efficient ([`Choice`]).
+    pub fallback: bool,
 }
 
 impl Default for LearnedSettings {
@@ -108,6 +112,7 @@ impl Default for LearnedSettings {
             box_mix: 0.3,
             train_spp: None,
             mis: Mis::Glossy,
+            fallback: true,
         }
     }
 }
@@ -125,7 +130,41 @@ pub struct LearnedZvidpt {
     pub iterations: Vec<Iteration>,
     /// The training iterations' samples (those of at least 2 spp), which the image includes.
     prior: Option<PriorSamples>,
+    /// What the training measured of the learned walk against the path tracer, if it did.
+    pub choice: Option<Choice>,
+    /// The path tracer that renders instead, when the learned walk lost ([`Choice`]).
+    path: Option<PathTracer>,
 }
+
+/// The learned walk against the path tracer, measured during training: after each iteration
+/// of at least [`PROBE_SPP`] samples per pixel, its mean per-sample variance times its cost
+/// per sample against those of a probe of the path tracer (`PROBE_SPP` samples in each of a
+/// quarter of the pixels, once, not in the image). Cost is counted in rays, the learned walk's rays weighing
+/// [`LEARNED_RAY_COST`] each, so the choice is a function of scene, options and seed alone
+/// (never of the clock). Where the learned walk loses (by more than [`EARLY_MARGIN`] at the
+/// first comparison, when its guide is youngest; at all later), training stops and the
+/// path tracer renders the rest; the training samples stay in the image (each pass unbiased,
+/// weighed by inverse variance). Either estimator is unbiased, and the choice looks only at
+/// samples that are not the final render's, so the image stays unbiased.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Choice {
+    /// Variance × rays per sample: the path probe's, the learned walk's last measured (its
+    /// rays weighed).
+    pub path: f64,
+    pub learned: f64,
+    /// The training iteration's samples per pixel at which that was measured.
+    pub at_spp: u32,
+    pub fell_back: bool,
+}
+
+/// Samples per pixel of the path tracer's probe, and the smallest training iteration compared
+/// with it.
+pub const PROBE_SPP: u32 = 4;
+/// Seconds per ray of the learned walk over the path tracer's (guide lookups, splitting):
+/// measured 1.12 (Bitterli's coffee), 1.22 (veach-mis), ... at 2 threads.
+pub const LEARNED_RAY_COST: f64 = 1.2;
+/// At the first comparison the learned walk must lose by this factor to stop.
+pub const EARLY_MARGIN: f64 = 2.0;
 
 /// Under a time budget, training iterations run while the next would end within this
 /// fraction of it.
@@ -141,7 +180,7 @@ const SETUP_RAYS: u32 = 4;
 impl LearnedZvidpt {
     #[must_use]
     pub fn new(settings: LearnedSettings) -> Self {
-        Self { settings, guide: None, iterations: Vec::new(), prior: None }
+        Self { settings, guide: None, iterations: Vec::new(), prior: None, choice: None, path: None }
     }
 
     /// Training samples actually spent.
@@ -525,17 +564,17 @@ impl LearnedZvidpt {
         guide: &LearnedGuide,
         seed: u64,
         spp: u32,
-    ) -> (Deposits, Vec<[f64; 3]>, Vec<[f64; 3]>) {
+    ) -> (Deposits, Vec<[f64; 3]>, Vec<[f64; 3]>, u64) {
         type Row = Vec<([f64; 3], [f64; 3])>;
         let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
         // Each worker deposits into its own accumulators, summed afterwards (integer sums:
         // the same bits however rayon split the rows).
-        let (deposits, mut rows) = (0..height)
+        let (deposits, mut rows, rays) = (0..height)
             .into_par_iter()
             .with_min_len(4)
             .fold(
-                || (guide.deposits(), Vec::<(u32, Row)>::new()),
-                |(mut deposits, mut rows), y| {
+                || (guide.deposits(), Vec::<(u32, Row)>::new(), 0u64),
+                |(mut deposits, mut rows, rays), y| {
                     let mut scratch = Scratch::default();
                     let mut row = Vec::new();
                     for x in 0..width {
@@ -564,19 +603,65 @@ impl LearnedZvidpt {
                         row.push((sum, sum_sq));
                     }
                     rows.push((y, row));
-                    (deposits, rows)
+                    (deposits, rows, rays + scratch.rays)
                 },
             )
             .reduce(
-                || (Deposits::default(), Vec::new()),
-                |(a, mut rows), (b, more)| {
+                || (Deposits::default(), Vec::new(), 0),
+                |(a, mut rows, r), (b, more, s)| {
                     rows.extend(more);
-                    (a.merge(b), rows)
+                    (a.merge(b), rows, r + s)
                 },
             );
         rows.sort_unstable_by_key(|r| r.0);
         let (sum, sum_sq) = rows.into_iter().flat_map(|r| r.1).unzip();
-        (deposits, sum, sum_sq)
+        (deposits, sum, sum_sq, rays)
+    }
+
+    /// The path tracer's probe: mean per-sample variance and rays per sample at
+    /// [`PROBE_SPP`] samples per pixel (its own sample streams), over every second pixel of
+    /// every second row (a quarter of the image: a quarter of the cost).
+    fn probe_path<A: Accel>(&self, ctx: &RenderContext<A>, path: &PathTracer, seed: u64) -> (f64, f64) {
+        let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
+        let (mut rows, rays) = (0..height.div_ceil(2))
+            .into_par_iter()
+            .map(|i| 2 * i)
+            .with_min_len(2)
+            .fold(
+                || (Vec::new(), 0u64),
+                |(mut rows, rays), y| {
+                    let mut scratch = Scratch::default();
+                    let row: Vec<([f64; 3], [f64; 3])> = (0..width)
+                        .step_by(2)
+                        .map(|x| {
+                            let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
+                            for s in 0..PROBE_SPP {
+                                let mut rng = SampleStream::probe(seed, y * width + x, s);
+                                let v = path.sample(ctx, UVec2::new(x, y), &(), &mut rng, &mut scratch);
+                                let v = if v.is_finite() { v } else { Vec3A::ZERO };
+                                for c in 0..3 {
+                                    sum[c] += f64::from(v[c]);
+                                    sum_sq[c] += f64::from(v[c]) * f64::from(v[c]);
+                                }
+                            }
+                            (sum, sum_sq)
+                        })
+                        .collect();
+                    rows.push((y, row));
+                    (rows, rays + scratch.rays)
+                },
+            )
+            .reduce(
+                || (Vec::new(), 0),
+                |(mut rows, r), (more, s)| {
+                    rows.extend(more);
+                    (rows, r + s)
+                },
+            );
+        rows.sort_unstable_by_key(|r: &(u32, Vec<_>)| r.0);
+        let (sum, sum_sq): (Vec<_>, Vec<_>) = rows.into_iter().flat_map(|r| r.1).unzip();
+        let samples = sum.len() as f64 * f64::from(PROBE_SPP);
+        (mean_variance(PROBE_SPP, &sum, &sum_sq), rays as f64 / samples.max(1.0))
     }
 }
 
@@ -621,6 +706,10 @@ impl Integrator for LearnedZvidpt {
         let planned = spp_budget.map(|b| (u64::from(b) + 1).ilog2().min(16));
         let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
         let mut prior = PriorSamples::new(width, height);
+        self.choice = None;
+        self.path = None;
+        let path = PathTracer { mis: self.settings.mis, ..PathTracer::default() };
+        let mut probe = None;
         for k in 0..16u32 {
             let spp = 1u32 << k;
             match (ctx.training_iterations.or(planned), time_budget) {
@@ -641,18 +730,40 @@ impl Integrator for LearnedZvidpt {
             }
             let t = Instant::now();
             guide.begin_iteration();
-            let (deposits, sum, sum_sq) = self.train_pass(ctx, &guide, seed, spp);
+            let (deposits, sum, sum_sq, rays) = self.train_pass(ctx, &guide, seed, spp);
             guide.end_iteration(k, deposits)?;
             prior.add_pass(spp, &sum, &sum_sq);
             self.iterations.push(Iteration { spp, seconds: t.elapsed().as_secs_f64() });
+            if self.settings.fallback && spp >= PROBE_SPP {
+                let (v_path, rays_path) = *probe.get_or_insert_with(|| self.probe_path(ctx, &path, seed));
+                let samples = f64::from(width) * f64::from(height) * f64::from(spp);
+                let learned = mean_variance(spp, &sum, &sum_sq) * (rays as f64 / samples) * LEARNED_RAY_COST;
+                let margin = if self.choice.is_none() { EARLY_MARGIN } else { 1.0 };
+                let fell_back = learned > margin * v_path * rays_path;
+                self.choice = Some(Choice { path: v_path * rays_path, learned, at_spp: spp, fell_back });
+                if fell_back {
+                    self.path = Some(path.clone());
+                    break;
+                }
+            }
         }
         prior.finish();
         self.prior = (!prior.is_empty()).then_some(prior);
         let stats = guide.stats();
         self.guide = Some(guide);
         let training: Vec<String> = self.iterations.iter().map(|i| format!("{}", i.spp)).collect();
+        let choice = match self.choice {
+            Some(c) => format!(
+                "; variance x rays per sample at {} spp: learned {:.3e}, path {:.3e} ({PROBE_SPP}-spp probe): {}",
+                c.at_spp,
+                c.learned,
+                c.path,
+                if c.fell_back { "path renders the rest" } else { "learned walk kept" }
+            ),
+            None => String::new(),
+        };
         Ok(Some(format!(
-            "photon seed {:.3} s; guide {stats}; training {} spp ({}) in {:.2} s, {} of them in the image",
+            "photon seed {:.3} s; guide {stats}; training {} spp ({}) in {:.2} s, {} of them in the image{choice}",
             seeded,
             self.training_spp(),
             if training.is_empty() { "none".to_string() } else { training.join("+") },
@@ -675,6 +786,9 @@ impl Integrator for LearnedZvidpt {
     }
 
     fn setup_pixel<A: Accel>(&self, ctx: &RenderContext<A>, pixel: UVec2, seed: u64, scratch: &mut Scratch) -> f32 {
+        if self.path.is_some() {
+            return 0.0;
+        }
         let guide = self.guide.as_ref().expect("prepare() builds the guide");
         self.pixel_reference(ctx, guide, pixel, seed, scratch)
     }
@@ -687,6 +801,9 @@ impl Integrator for LearnedZvidpt {
         rng: &mut SampleStream,
         scratch: &mut Scratch,
     ) -> Vec3A {
+        if let Some(path) = &self.path {
+            return path.sample(ctx, pixel, &(), rng, scratch);
+        }
         let guide = self.guide.as_ref().expect("prepare() builds the guide");
         self.camera_sample(ctx, guide, pixel, *reference, rng, scratch, None)
     }

@@ -59,6 +59,19 @@ pub fn mean_and_variance(sum: f64, sum_sq: f64, n: f64) -> (f64, f64) {
     (mean, ((sum_sq - n * mean * mean) / (n - 1.0)).max(0.0))
 }
 
+/// Mean per-sample variance over pixels and channels of a pass of `spp ≥ 2` samples per
+/// pixel, from their sums.
+#[must_use]
+pub fn mean_variance(spp: u32, sum: &[[f64; 3]], sum_sq: &[[f64; 3]]) -> f64 {
+    let n = f64::from(spp);
+    let total: f64 = sum
+        .iter()
+        .zip(sum_sq)
+        .map(|(s, q)| (0..3).map(|c| mean_and_variance(s[c], q[c], n).1).sum::<f64>())
+        .sum();
+    total / (3 * sum.len().max(1)) as f64
+}
+
 #[inline]
 fn parity(index: usize, width: u32) -> usize {
     let (x, y) = (index % width as usize, index / width as usize);
