@@ -37,9 +37,10 @@ fn every_integrator_sees_the_plane_at_half_the_environment() {
     for estimator in [Estimator::Terminal, Estimator::Collision] {
         assert!(z(&format!("{estimator:?}"), &mut Zvidpt::new(estimator, GuideSettings::default())).abs() < 4.0);
     }
+    // The learned walk itself (here the default falls back to path: see tests/learned.rs).
     for mis in [Mis::Glossy, Mis::All, Mis::Off] {
-        let settings = LearnedSettings { mis, ..LearnedSettings::default() };
-        assert!(z(&format!("zvidpt --mis {mis:?}"), &mut LearnedZvidpt::new(settings)).abs() < 4.0);
+        let settings = LearnedSettings { mis, fallback: false, ..LearnedSettings::default() };
+        assert!(z(&format!("zvidpt --mis {mis:?} --fallback off"), &mut LearnedZvidpt::new(settings)).abs() < 4.0);
     }
     assert!(z("path scaled by 0.98", &mut Scaled(PathTracer::default(), 0.98)).abs() >= 4.0);
 }
@@ -67,5 +68,7 @@ fn every_integrator_sees_the_plane_under_the_sun() {
         assert!(sun_z(&format!("{estimator:?}"), &mut Zvidpt::new(estimator, GuideSettings::default())).abs() < 4.0);
     }
     assert!(sun_z("zvidpt", &mut LearnedZvidpt::new(LearnedSettings::default())).abs() < 4.0);
+    let walk = LearnedSettings { fallback: false, ..LearnedSettings::default() };
+    assert!(sun_z("zvidpt --fallback off", &mut LearnedZvidpt::new(walk)).abs() < 4.0);
     assert!(sun_z("path scaled by 0.98", &mut Scaled(PathTracer::default(), 0.98)).abs() >= 4.0);
 }

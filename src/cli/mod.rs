@@ -258,7 +258,7 @@ pub struct PhotonArgs {
     #[arg(long, value_enum, default_value_t = Switch::On)]
     pub roulette_cv: Switch,
     /// zvidpt and jensen --learned-guide on: measure the path tracer during training (an
-    /// 4-spp probe) and let it render the rest where the learned walk's variance times cost
+    /// 8-spp probe) and let it render the rest where the learned walk's variance times cost
     /// per sample is higher (on), or always keep the learned walk (off).
     #[arg(long, value_enum, default_value_t = Switch::On)]
     pub fallback: Switch,

@@ -136,15 +136,14 @@ pub struct LearnedZvidpt {
     path: Option<PathTracer>,
 }
 
-/// The learned walk against the path tracer, measured during training: after each iteration
-/// of at least [`PROBE_SPP`] samples per pixel, its mean per-sample variance times its cost
-/// per sample against those of a probe of the path tracer (`PROBE_SPP` samples in each of a
-/// quarter of the pixels, once, not in the image). Cost is counted in rays, the learned walk's rays weighing
-/// [`LEARNED_RAY_COST`] each, so the choice is a function of scene, options and seed alone
-/// (never of the clock). Where the learned walk loses (by more than [`EARLY_MARGIN`] at the
-/// first comparison, when its guide is youngest; at all later), training stops and the
-/// path tracer renders the rest; the training samples stay in the image (each pass unbiased,
-/// weighed by inverse variance). Either estimator is unbiased, and the choice looks only at
+/// The learned walk against the path tracer, measured at the end of training: a probe of
+/// each walk from the same first hits ([`PROBE_SPP`] samples through the centres of a quarter
+/// of the pixels, not in the image; the learned walk with the guide the final render samples)
+/// gives the mean per-sample variance times the cost per sample of each. Cost is counted in
+/// rays, the learned walk's rays weighing [`LEARNED_RAY_COST`] each, so the choice is a
+/// function of scene, options and seed alone (never of the clock). Where the learned walk
+/// loses, the path tracer renders the rest. The training samples stay in the image (each pass
+/// unbiased, weighed by inverse variance). Either estimator is unbiased, and the choice looks only at
 /// samples that are not the final render's, so the image stays unbiased.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Choice {
@@ -152,19 +151,19 @@ pub struct Choice {
     /// rays weighed).
     pub path: f64,
     pub learned: f64,
-    /// The training iteration's samples per pixel at which that was measured.
-    pub at_spp: u32,
+    /// Training samples per pixel before the probe.
+    pub after_spp: u32,
     pub fell_back: bool,
 }
 
-/// Samples per pixel of the path tracer's probe, and the smallest training iteration compared
-/// with it.
-pub const PROBE_SPP: u32 = 4;
+/// Samples per probed pixel, for each walk.
+pub const PROBE_SPP: u32 = 8;
+/// Training samples per pixel the guide needs before it is judged (1 + 2 + 4: the youngest
+/// guides are no measure of the walk).
+pub const MIN_TRAINING_SPP: u32 = 7;
 /// Seconds per ray of the learned walk over the path tracer's (guide lookups, splitting):
 /// measured 1.12 (Bitterli's coffee), 1.22 (veach-mis), ... at 2 threads.
 pub const LEARNED_RAY_COST: f64 = 1.2;
-/// At the first comparison the learned walk must lose by this factor to stop.
-pub const EARLY_MARGIN: f64 = 2.0;
 
 /// Under a time budget, training iterations run while the next would end within this
 /// fraction of it.
@@ -564,17 +563,17 @@ impl LearnedZvidpt {
         guide: &LearnedGuide,
         seed: u64,
         spp: u32,
-    ) -> (Deposits, Vec<[f64; 3]>, Vec<[f64; 3]>, u64) {
+    ) -> (Deposits, Vec<[f64; 3]>, Vec<[f64; 3]>) {
         type Row = Vec<([f64; 3], [f64; 3])>;
         let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
         // Each worker deposits into its own accumulators, summed afterwards (integer sums:
         // the same bits however rayon split the rows).
-        let (deposits, mut rows, rays) = (0..height)
+        let (deposits, mut rows) = (0..height)
             .into_par_iter()
             .with_min_len(4)
             .fold(
-                || (guide.deposits(), Vec::<(u32, Row)>::new(), 0u64),
-                |(mut deposits, mut rows, rays), y| {
+                || (guide.deposits(), Vec::<(u32, Row)>::new()),
+                |(mut deposits, mut rows), y| {
                     let mut scratch = Scratch::default();
                     let mut row = Vec::new();
                     for x in 0..width {
@@ -603,25 +602,36 @@ impl LearnedZvidpt {
                         row.push((sum, sum_sq));
                     }
                     rows.push((y, row));
-                    (deposits, rows, rays + scratch.rays)
+                    (deposits, rows)
                 },
             )
             .reduce(
-                || (Deposits::default(), Vec::new(), 0),
-                |(a, mut rows, r), (b, more, s)| {
+                || (Deposits::default(), Vec::new()),
+                |(a, mut rows), (b, more)| {
                     rows.extend(more);
-                    (a.merge(b), rows, r + s)
+                    (a.merge(b), rows)
                 },
             );
         rows.sort_unstable_by_key(|r| r.0);
         let (sum, sum_sq) = rows.into_iter().flat_map(|r| r.1).unzip();
-        (deposits, sum, sum_sq, rays)
+        (deposits, sum, sum_sq)
     }
 
-    /// The path tracer's probe: mean per-sample variance and rays per sample at
-    /// [`PROBE_SPP`] samples per pixel (its own sample streams), over every second pixel of
-    /// every second row (a quarter of the image: a quarter of the cost).
-    fn probe_path<A: Accel>(&self, ctx: &RenderContext<A>, path: &PathTracer, seed: u64) -> (f64, f64) {
+    /// A probe of the walks: over every second pixel of every second row (a quarter of the
+    /// image), [`PROBE_SPP`] samples through the pixel's centre, so that every sample starts
+    /// from the same first hit and the spread is the walk's alone (the pixel footprint's
+    /// variance, which both estimators share and the pixel's (0,2)-sequence removes from the
+    /// image, would otherwise dominate: on `cornell-paper` at 256×192 the per-sample variance
+    /// was 8.0 for path and 3.6 for the learned walk, whose MSE is a tenth of path's).
+    /// Returns the mean per-sample variance and the rays per sample; the path tracer's walk
+    /// when `guide` is `None`, else the learned walk from `guide`. Sample streams of their own.
+    fn probe<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        path: &PathTracer,
+        guide: Option<&LearnedGuide>,
+        seed: u64,
+    ) -> (f64, f64) {
         let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
         let (mut rows, rays) = (0..height.div_ceil(2))
             .into_par_iter()
@@ -634,10 +644,21 @@ impl LearnedZvidpt {
                     let row: Vec<([f64; 3], [f64; 3])> = (0..width)
                         .step_by(2)
                         .map(|x| {
+                            let pixel = UVec2::new(x, y);
+                            let index = u64::from(y * width + x);
+                            let reference =
+                                guide.map_or(0.0, |g| self.pixel_reference(ctx, g, pixel, seed, &mut scratch));
                             let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
                             for s in 0..PROBE_SPP {
-                                let mut rng = SampleStream::probe(seed, y * width + x, s);
-                                let v = path.sample(ctx, UVec2::new(x, y), &(), &mut rng, &mut scratch);
+                                // Keyed apart for the two walks; the film point is the centre.
+                                let key = 2 * u64::from(s) + u64::from(guide.is_some());
+                                let mut rng = SampleStream::in_domain(Domain::Probe, seed, index, key);
+                                let v = match guide {
+                                    Some(g) => {
+                                        self.camera_sample(ctx, g, pixel, reference, &mut rng, &mut scratch, None)
+                                    }
+                                    None => path.sample(ctx, pixel, &(), &mut rng, &mut scratch),
+                                };
                                 let v = if v.is_finite() { v } else { Vec3A::ZERO };
                                 for c in 0..3 {
                                     sum[c] += f64::from(v[c]);
@@ -709,7 +730,6 @@ impl Integrator for LearnedZvidpt {
         self.choice = None;
         self.path = None;
         let path = PathTracer { mis: self.settings.mis, ..PathTracer::default() };
-        let mut probe = None;
         for k in 0..16u32 {
             let spp = 1u32 << k;
             match (ctx.training_iterations.or(planned), time_budget) {
@@ -730,21 +750,20 @@ impl Integrator for LearnedZvidpt {
             }
             let t = Instant::now();
             guide.begin_iteration();
-            let (deposits, sum, sum_sq, rays) = self.train_pass(ctx, &guide, seed, spp);
+            let (deposits, sum, sum_sq) = self.train_pass(ctx, &guide, seed, spp);
             guide.end_iteration(k, deposits)?;
             prior.add_pass(spp, &sum, &sum_sq);
             self.iterations.push(Iteration { spp, seconds: t.elapsed().as_secs_f64() });
-            if self.settings.fallback && spp >= PROBE_SPP {
-                let (v_path, rays_path) = *probe.get_or_insert_with(|| self.probe_path(ctx, &path, seed));
-                let samples = f64::from(width) * f64::from(height) * f64::from(spp);
-                let learned = mean_variance(spp, &sum, &sum_sq) * (rays as f64 / samples) * LEARNED_RAY_COST;
-                let margin = if self.choice.is_none() { EARLY_MARGIN } else { 1.0 };
-                let fell_back = learned > margin * v_path * rays_path;
-                self.choice = Some(Choice { path: v_path * rays_path, learned, at_spp: spp, fell_back });
-                if fell_back {
-                    self.path = Some(path.clone());
-                    break;
-                }
+        }
+        // The choice, with the guide the final render would sample.
+        if self.settings.fallback && self.training_spp() >= MIN_TRAINING_SPP {
+            let (v_path, rays_path) = self.probe(ctx, &path, None, seed);
+            let (v_learned, rays_learned) = self.probe(ctx, &path, Some(&guide), seed);
+            let (p, l) = (v_path * rays_path, v_learned * rays_learned * LEARNED_RAY_COST);
+            let fell_back = l > p;
+            self.choice = Some(Choice { path: p, learned: l, after_spp: self.training_spp(), fell_back });
+            if fell_back {
+                self.path = Some(path.clone());
             }
         }
         prior.finish();
@@ -754,8 +773,8 @@ impl Integrator for LearnedZvidpt {
         let training: Vec<String> = self.iterations.iter().map(|i| format!("{}", i.spp)).collect();
         let choice = match self.choice {
             Some(c) => format!(
-                "; variance x rays per sample at {} spp: learned {:.3e}, path {:.3e} ({PROBE_SPP}-spp probe): {}",
-                c.at_spp,
+                "; walk probe ({PROBE_SPP} spp, variance x rays per sample) after {} training spp: learned {:.3e}, path {:.3e}: {}",
+                c.after_spp,
                 c.learned,
                 c.path,
                 if c.fell_back { "path renders the rest" } else { "learned walk kept" }

@@ -64,11 +64,8 @@ pub fn mean_and_variance(sum: f64, sum_sq: f64, n: f64) -> (f64, f64) {
 #[must_use]
 pub fn mean_variance(spp: u32, sum: &[[f64; 3]], sum_sq: &[[f64; 3]]) -> f64 {
     let n = f64::from(spp);
-    let total: f64 = sum
-        .iter()
-        .zip(sum_sq)
-        .map(|(s, q)| (0..3).map(|c| mean_and_variance(s[c], q[c], n).1).sum::<f64>())
-        .sum();
+    let total: f64 =
+        sum.iter().zip(sum_sq).map(|(s, q)| (0..3).map(|c| mean_and_variance(s[c], q[c], n).1).sum::<f64>()).sum();
     total / (3 * sum.len().max(1)) as f64
 }
 

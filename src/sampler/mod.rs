@@ -22,8 +22,8 @@ pub enum Domain {
     Photon = 2,
     /// First-hit AOV rays.
     Aov = 3,
-    /// Camera samples of a probe (a learning integrator measuring the path tracer's variance):
-    /// independent of the render's own camera samples.
+    /// A learning integrator's probe of its walks (through pixel centres): independent of
+    /// the render's own camera samples.
     Probe = 4,
 }
 
@@ -44,17 +44,6 @@ impl SampleStream {
     pub fn new(seed: u64, pixel: u32, sample: u32) -> Self {
         let mut stream = Self::in_domain(Domain::Camera, seed, pixel as u64, sample as u64);
         let scramble = mix64(seed ^ mix64(0x005E_ED0F_50B0_u64 ^ pixel as u64));
-        stream.pixel_point = sobol_02(sample, scramble);
-        stream
-    }
-
-    /// Camera sample `sample` of pixel `pixel` for a probe: as [`Self::new`] (its own
-    /// scrambled (0,2)-sequence in the pixel), independent of the render's samples.
-    #[inline]
-    #[must_use]
-    pub fn probe(seed: u64, pixel: u32, sample: u32) -> Self {
-        let mut stream = Self::in_domain(Domain::Probe, seed, pixel as u64, sample as u64);
-        let scramble = mix64(seed ^ mix64(0x0050_0BE0_50B0_u64 ^ pixel as u64));
         stream.pixel_point = sobol_02(sample, scramble);
         stream
     }
