@@ -136,14 +136,16 @@ pub struct LearnedZvidpt {
     path: Option<PathTracer>,
 }
 
-/// The learned walk against the path tracer, measured at the end of training: a probe of
+/// The learned walk against the path tracer, measured during and at the end of training: a probe of
 /// each walk from the same first hits ([`PROBE_SPP`] samples through the centres of a quarter
 /// of the pixels, not in the image; the learned walk with the guide the final render samples)
 /// gives the mean per-sample variance times the cost per sample of each. Cost is counted in
 /// rays, the learned walk's rays weighing [`LEARNED_RAY_COST`] each, so the choice is a
 /// function of scene, options and seed alone (never of the clock). Where the learned walk
-/// loses, the path tracer renders the rest. The training samples stay in the image (each pass
-/// unbiased, weighed by inverse variance). Either estimator is unbiased, and the choice looks only at
+/// loses, the path tracer renders the rest; a first judgement as soon as the guide has
+/// [`MIN_TRAINING_SPP`] stops the training where the walk loses by more than
+/// [`EARLY_MARGIN`]. The training samples stay in the image (each pass unbiased, weighed by
+/// inverse variance). Either estimator is unbiased, and the choice looks only at
 /// samples that are not the final render's, so the image stays unbiased.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Choice {
@@ -158,6 +160,9 @@ pub struct Choice {
 
 /// Samples per probed pixel, for each walk.
 pub const PROBE_SPP: u32 = 8;
+/// At the first judgement (after [`MIN_TRAINING_SPP`]) the learned walk must lose by this
+/// factor to stop the training; at the end of training, by any.
+pub const EARLY_MARGIN: f64 = 1.5;
 /// Training samples per pixel the guide needs before it is judged (1 + 2 + 4: the youngest
 /// guides are no measure of the walk).
 pub const MIN_TRAINING_SPP: u32 = 7;
@@ -617,6 +622,25 @@ impl LearnedZvidpt {
         (deposits, sum, sum_sq)
     }
 
+    /// Probes both walks (the path tracer's once, kept in `path_probe`) and records the
+    /// choice: the learned walk falls back when its figure exceeds `margin` times path's.
+    fn judge<A: Accel>(
+        &mut self,
+        ctx: &RenderContext<A>,
+        path: &PathTracer,
+        guide: &LearnedGuide,
+        seed: u64,
+        path_probe: &mut Option<(f64, f64)>,
+        margin: f64,
+    ) -> Choice {
+        let (v_path, rays_path) = *path_probe.get_or_insert_with(|| self.probe(ctx, path, None, seed));
+        let (v_learned, rays_learned) = self.probe(ctx, path, Some(guide), seed);
+        let (p, l) = (v_path * rays_path, v_learned * rays_learned * LEARNED_RAY_COST);
+        let c = Choice { path: p, learned: l, after_spp: self.training_spp(), fell_back: l > margin * p };
+        self.choice = Some(c);
+        c
+    }
+
     /// A probe of the walks: over every second pixel of every second row (a quarter of the
     /// image), [`PROBE_SPP`] samples through the pixel's centre, so that every sample starts
     /// from the same first hit and the spread is the walk's alone (the pixel footprint's
@@ -729,6 +753,7 @@ impl Integrator for LearnedZvidpt {
         let mut prior = PriorSamples::new(width, height);
         self.choice = None;
         self.path = None;
+        let mut path_probe = None;
         let path = PathTracer { mis: self.settings.mis, ..PathTracer::default() };
         for k in 0..16u32 {
             let spp = 1u32 << k;
@@ -754,15 +779,28 @@ impl Integrator for LearnedZvidpt {
             guide.end_iteration(k, deposits)?;
             prior.add_pass(spp, &sum, &sum_sq);
             self.iterations.push(Iteration { spp, seconds: t.elapsed().as_secs_f64() });
+            // The first judgement, as soon as the guide has its minimum training: a walk that
+            // loses clearly stops the training there.
+            if self.settings.fallback && self.choice.is_none() && self.training_spp() >= MIN_TRAINING_SPP {
+                let c = self.judge(ctx, &path, &guide, seed, &mut path_probe, EARLY_MARGIN);
+                if c.fell_back {
+                    self.path = Some(path.clone());
+                    break;
+                }
+            }
         }
-        // The choice, with the guide the final render would sample.
-        if self.settings.fallback && self.training_spp() >= MIN_TRAINING_SPP {
-            let (v_path, rays_path) = self.probe(ctx, &path, None, seed);
-            let (v_learned, rays_learned) = self.probe(ctx, &path, Some(&guide), seed);
-            let (p, l) = (v_path * rays_path, v_learned * rays_learned * LEARNED_RAY_COST);
-            let fell_back = l > p;
-            self.choice = Some(Choice { path: p, learned: l, after_spp: self.training_spp(), fell_back });
-            if fell_back {
+        // The choice, with the guide the final render would sample (the figures of the first
+        // judgement if the guide has not changed since).
+        if self.settings.fallback && self.path.is_none() {
+            let c = match self.choice {
+                Some(c) if c.after_spp == self.training_spp() => Some(Choice { fell_back: c.learned > c.path, ..c }),
+                _ if self.training_spp() >= MIN_TRAINING_SPP => {
+                    Some(self.judge(ctx, &path, &guide, seed, &mut path_probe, 1.0))
+                }
+                _ => None,
+            };
+            self.choice = c;
+            if c.is_some_and(|c| c.fell_back) {
                 self.path = Some(path.clone());
             }
         }

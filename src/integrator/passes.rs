@@ -333,14 +333,14 @@ mod tests {
     fn a_pass_is_no_better_than_its_successor() {
         let (w, h) = (4, 2);
         let mut prior = PriorSamples::new(w, h);
-        let (s, q) = pass(&vec![[1.0; 3]; 8], 2, 1.0);
+        let (s, q) = pass(&[[1.0; 3]; 8], 2, 1.0);
         assert!(prior.add_pass(2, &s, &q));
-        let (s, q) = pass(&vec![[3.0; 3]; 8], 8, 10f64.sqrt());
+        let (s, q) = pass(&[[3.0; 3]; 8], 8, 10f64.sqrt());
         assert!(prior.add_pass(8, &s, &q));
         prior.finish();
         // Per-sample variances 2 and 80/7: weights 2·7/80 and 8·7/80 → (1·2 + 3·8)/10 = 2.6;
         // with the first pass's own variance it would be (1·1 + 3·0.7)/1.7 = 1.82.
-        let (s, q) = pass(&vec![[3.0; 3]; 8], 0, 0.0);
+        let (s, q) = pass(&[[3.0; 3]; 8], 0, 0.0);
         let (pixels, _) = prior.combine(0, &s, &q);
         for p in &pixels {
             assert!((p[0] - 2.6).abs() < 1e-5, "{p:?}");
