@@ -1,0 +1,178 @@
+"""zvidpt against Mitsuba 3 on the same Mitsuba scene file, at equal time, in one run.
+
+    pip install mitsuba numpy OpenEXR
+    python3 peers/race.py SCENE.xml OUT [--time 20] [--seeds 1,2] [--threads 2] [--ref-spp 8192]
+        [--integrators "path;zvidpt"] [--zvidpt BIN] [-D NAME=VALUE ...]
+
+Both renderers read SCENE.xml itself (zvidpt's Mitsuba importer), so nothing is translated by
+hand. For each seed:
+
+- zvidpt renders with each integrator (a `zvidpt render` flag string; `;` between them) for
+  --time seconds, training and pre-passes included;
+- Mitsuba 3 (`scalar_rgb`, the scene's own integrator, sampler and film, --threads threads)
+  renders at the sample count that fills the same time: after a 1-spp warm-up, a 4-spp
+  render measures its seconds per sample, and the race render's spp is the budget over that (its own seconds are
+  reported; Mitsuba has no time budget of its own).
+
+Every image is compared with a reference, `zvidpt reference` (`path` at --ref-spp, kept in
+OUT/ref.exr while the scene's content hash and spp match): MSE, and MSE x seconds (lower is
+better, the figure that equal time cannot make exactly equal). Before any comparison the
+translation is checked: the mean of Mitsuba's images against the reference's mean, per
+channel, with a z statistic whose variance comes from the spread between Mitsuba's seeds
+(per pixel, (a - b)^2 / 2 over two seeds) and the reference's own variance; |z| above 4 is
+reported as a mismatch and its MSE is not a race result.
+
+Writes OUT/race.csv (a row per renderer, integrator and seed) and OUT/race.md.
+"""
+import argparse
+import csv
+import math
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+DEFAULT_BIN = HERE.parent / "target" / "release" / "zvidpt"
+
+
+def read_exr(path):
+    """RGB and, where the file has one, the per-pixel variance (zvidpt's `variance` layer)."""
+    import OpenEXR
+
+    f = OpenEXR.File(str(path))
+    ch = f.parts[0].channels
+    if "RGB" in ch:
+        rgb = np.asarray(ch["RGB"].pixels, dtype=np.float64)
+    else:
+        rgb = np.dstack([np.asarray(ch[c].pixels, dtype=np.float64) for c in ("R", "G", "B")])
+    var = None
+    if "variance" in ch:
+        var = np.asarray(ch["variance"].pixels, dtype=np.float64)
+        if var.ndim == 2:
+            var = np.repeat(var[:, :, None], 3, axis=2)
+    return rgb, var
+
+
+def run(args):
+    r = subprocess.run([str(a) for a in args], capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit(f"{' '.join(map(str, args))}: {r.stderr.strip()}")
+    return r.stdout + r.stderr
+
+
+def zvidpt_seconds(out):
+    m = re.search(r"spp[^,]*, ([0-9.]+) s", out)
+    return float(m.group(1)) if m else float("nan")
+
+
+def mitsuba_render(scene, spp, seed):
+    import mitsuba as mi
+
+    start = time.perf_counter()
+    img = np.array(mi.render(scene, spp=spp, seed=seed), dtype=np.float64)[:, :, :3]
+    return img, time.perf_counter() - start
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("scene")
+    p.add_argument("out")
+    p.add_argument("--time", type=float, default=20.0)
+    p.add_argument("--seeds", default="1,2")
+    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--ref-spp", type=int, default=8192)
+    p.add_argument("--integrators", default="path;zvidpt")
+    p.add_argument("--zvidpt", default=str(DEFAULT_BIN))
+    p.add_argument("-D", dest="defines", action="append", default=[], metavar="NAME=VALUE")
+    a = p.parse_args()
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    seeds = [int(s) for s in a.seeds.split(",")]
+    defines = [x for d in a.defines for x in ("-D", d)]
+    threads = ["--threads", str(a.threads)]
+
+    ref_path = out / "ref.exr"
+    run([a.zvidpt, "reference", a.scene, "--spp", a.ref_spp, "-o", ref_path, "-q", *threads, *defines])
+    ref, ref_var = read_exr(ref_path)
+    rows = []
+
+    for flags in [f.split() for f in a.integrators.split(";") if f.strip()]:
+        name = " ".join(flags)
+        for seed in seeds:
+            img = out / f"zvidpt-{'-'.join(flags).lstrip('-')}-{seed}.exr"
+            o = run([a.zvidpt, "render", a.scene, "--integrator", *flags, "--time", a.time, "--seed", seed,
+                     "-o", img, "--no-png", *threads, *defines])
+            rgb, _ = read_exr(img)
+            secs = zvidpt_seconds(o)
+            mse = float(((rgb - ref) ** 2).mean())
+            rows.append(("zvidpt", name, seed, secs, mse))
+            print(f"zvidpt {name} seed {seed}: {secs:.2f} s, MSE {mse:.4g}", flush=True)
+
+    import drjit as dr
+    import mitsuba as mi
+
+    mi.set_variant("scalar_rgb")
+    dr.set_thread_count(a.threads)
+    params = dict(d.split("=", 1) for d in a.defines)
+    scene = mi.load_file(a.scene, **params)
+    mitsuba_render(scene, 1, 0)  # warm-up: the first render pays for set-up
+    _, t4 = mitsuba_render(scene, 4, 0)
+    spp = max(1, int(a.time / (t4 / 4)))
+    images = []
+    for seed in seeds:
+        img, secs = mitsuba_render(scene, spp, seed)
+        images.append(img)
+        mse = float(((img - ref) ** 2).mean())
+        rows.append(("mitsuba", f"path {spp} spp", seed, secs, mse))
+        print(f"mitsuba path {spp} spp seed {seed}: {secs:.2f} s, MSE {mse:.4g}", flush=True)
+
+    # The translation check: Mitsuba's mean image against the reference's, per channel.
+    mean = np.mean(images, axis=0)
+    pixels = mean.shape[0] * mean.shape[1]
+    if len(images) >= 2:
+        spread = ((images[0] - images[1]) ** 2 / 2).sum(axis=(0, 1)) / pixels**2 / len(images)
+    else:
+        spread = np.zeros(3)
+    ref_var_mean = (ref_var.sum(axis=(0, 1)) / a.ref_spp / pixels**2) if ref_var is not None else np.zeros(3)
+    diff = mean.mean(axis=(0, 1)) - ref.mean(axis=(0, 1))
+    z = diff / np.sqrt(np.maximum(spread + ref_var_mean, 1e-30))
+    ratio = mean.mean(axis=(0, 1)) / np.maximum(ref.mean(axis=(0, 1)), 1e-30)
+    matched = bool(np.all(np.abs(z) < 4.0))
+    check = (f"Mitsuba 3 mean / reference mean: {ratio[0]:.4f}, {ratio[1]:.4f}, {ratio[2]:.4f} "
+             f"(z {z[0]:.2f}, {z[1]:.2f}, {z[2]:.2f}): {'matches' if matched else 'MISMATCH'}")
+    print(check)
+
+    with open(out / "race.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["renderer", "integrator", "seed", "seconds", "mse", "mse_x_seconds"])
+        for r in rows:
+            w.writerow([*r, r[3] * r[4]])
+    lines = [
+        f"Equal time {a.time:g} s, {a.threads} threads, seeds {a.seeds}; MSE against `zvidpt reference` "
+        f"(path, {a.ref_spp} spp). {check}.",
+        "",
+        "| renderer | integrator | seconds | MSE | MSE x seconds | spread of MSE x seconds over seeds |",
+        "|---|---|---|---|---|---|",
+    ]
+    groups = {}
+    for r in rows:
+        groups.setdefault((r[0], r[1]), []).append(r)
+    for (renderer, name), rs in groups.items():
+        secs = sum(r[3] for r in rs) / len(rs)
+        mse = sum(r[4] for r in rs) / len(rs)
+        ms = [r[3] * r[4] for r in rs]
+        flag = "" if renderer == "zvidpt" or matched else " (translation mismatch)"
+        lines.append(f"| {renderer} | {name}{flag} | {secs:.2f} | {mse:.4g} | {sum(ms) / len(ms):.4g} | "
+                     f"{min(ms):.4g} - {max(ms):.4g} |")
+    (out / "race.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    if not all(math.isfinite(r[4]) for r in rows):
+        sys.exit("a render produced a non-finite MSE")
+
+
+if __name__ == "__main__":
+    main()
