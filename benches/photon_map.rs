@@ -8,7 +8,7 @@ use zvidpt::scene::Scene;
 
 fn photon_map(c: &mut Criterion) {
     let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell-paper")).unwrap();
-    let accel = BvhAccel::build(&scene);
+    let accel = BvhAccel::build(&scene.triangles);
     let shape = GridShape { rows: 4, cols: 16 };
     let mut group = c.benchmark_group("photon map cornell-paper");
     group.sample_size(10);

@@ -117,9 +117,9 @@ fn run_packets<A: Accel>(accel: &A, rays: &[Ray], t_max: Option<&[f32]>) -> usiz
 }
 
 fn bench_scene(c: &mut Criterion, scene: &Scene) {
-    let bvh = BvhAccel::build(scene);
+    let bvh = BvhAccel::build(&scene.triangles);
     #[cfg(feature = "embree")]
-    let embree = EmbreeAccel::build(scene).expect("Embree builds the scene");
+    let embree = EmbreeAccel::build(&scene.triangles).expect("Embree builds the scene");
     let primary = primary_rays(scene);
     let (bounce, shadow, t_max) = secondary_rays(scene, &bvh, &primary);
     let mut group = c.benchmark_group(format!("rays {}", scene.name));

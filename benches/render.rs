@@ -26,7 +26,7 @@ fn bench_integrator<I: Integrator>(
 fn integrators(c: &mut Criterion) {
     let mut scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell-paper")).unwrap();
     scene.set_resolution(256, 192).unwrap();
-    let accel = BvhAccel::build(&scene);
+    let accel = BvhAccel::build(&scene.triangles);
     bench_integrator(c, "path", &scene, &accel, PathTracer::default);
     bench_integrator(c, "jensen", &scene, &accel, || Jensen::new(GuideSettings::default()));
     bench_integrator(c, "zvidpt-terminal", &scene, &accel, || {

@@ -46,7 +46,7 @@ fn bench<I: Integrator>(
 fn time_to_target(c: &mut Criterion) {
     let mut scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell-paper")).unwrap();
     scene.set_resolution(64, 48).unwrap();
-    let accel = BvhAccel::build(&scene);
+    let accel = BvhAccel::build(&scene.triangles);
     let reference = render(&scene, &accel, &mut PathTracer::default(), &settings(4096, 999)).unwrap().0;
     let path64 = render(&scene, &accel, &mut PathTracer::default(), &settings(64, 1)).unwrap().0;
     let target = metrics(&path64, &reference).unwrap().mse;

@@ -57,7 +57,7 @@ fn check_agreement<A: Accel>(accel: &A, tris: &[[Vec3A; 3]], rays: &[Ray]) {
 fn bvh_agrees_with_brute_force_in_shipped_scenes() {
     for name in ["cornell-paper", "furnace"] {
         let scene = scene(name);
-        let bvh = BvhAccel::build(&scene);
+        let bvh = BvhAccel::build(&scene.triangles);
         let mut rng = SampleStream::in_domain(Domain::Camera, 5, 0, 0);
         let rays: Vec<Ray> =
             (0..20_000).map(|_| Ray::new(random_point(&mut rng, -0.99, 0.99), random_dir(&mut rng))).collect();
@@ -78,7 +78,7 @@ fn bvh_agrees_with_brute_force_on_triangle_soup() {
             ]
         })
         .collect();
-    let bvh = BvhAccel::from_triangles(&tris);
+    let bvh = BvhAccel::build(&tris);
     let rays: Vec<Ray> =
         (0..20_000).map(|_| Ray::new(random_point(&mut rng, -6.0, 6.0), random_dir(&mut rng))).collect();
     check_agreement(&bvh, &tris, &rays);
@@ -87,7 +87,7 @@ fn bvh_agrees_with_brute_force_on_triangle_soup() {
 #[test]
 fn invalid_rays_hit_nothing() {
     let scene = scene("cornell-paper");
-    let bvh = BvhAccel::build(&scene);
+    let bvh = BvhAccel::build(&scene.triangles);
     let brute = BruteForce { triangles: scene.triangles.clone() };
     let bad = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY];
     for &x in &bad {

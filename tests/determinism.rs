@@ -9,7 +9,7 @@ use zvidpt::render::{RenderSettings, render};
 #[test]
 fn identical_across_threads_and_tiles() {
     let scene = scene_at("cornell-paper", 96, 72);
-    let accel = BvhAccel::build(&scene);
+    let accel = BvhAccel::build(&scene.triangles);
     let run = |threads, tile_size| {
         let s =
             RenderSettings { spp: Some(6), seed: 42, threads: Some(threads), tile_size, ..RenderSettings::default() };

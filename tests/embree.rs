@@ -35,8 +35,8 @@ fn agree(a: Option<Hit>, b: Option<Hit>) -> bool {
 #[test]
 fn embree_agrees_with_brute_force_and_bvh() {
     let scene = scene("furnace");
-    let embree = EmbreeAccel::build(&scene).unwrap();
-    let bvh = BvhAccel::build(&scene);
+    let embree = EmbreeAccel::build(&scene.triangles).unwrap();
+    let bvh = BvhAccel::build(&scene.triangles);
     let brute = BruteForce { triangles: scene.triangles.clone() };
     let mut rng = SampleStream::in_domain(Domain::Camera, 17, 0, 0);
     let mut rays = Vec::new();
@@ -85,8 +85,8 @@ fn embree_agrees_with_brute_force_and_bvh() {
 #[test]
 fn watertight_inside_closed_sphere() {
     let scene = scene("furnace");
-    let embree = EmbreeAccel::build(&scene).unwrap();
-    let bvh = BvhAccel::build(&scene);
+    let embree = EmbreeAccel::build(&scene.triangles).unwrap();
+    let bvh = BvhAccel::build(&scene.triangles);
     let n = 1_000_000usize;
     let (mut miss_embree, mut miss_bvh) = ([0usize; 3], [0usize; 3]);
     let mut rng = SampleStream::in_domain(Domain::Camera, 23, 0, 0);
@@ -114,7 +114,7 @@ fn watertight_inside_closed_sphere() {
 #[test]
 fn invalid_rays_hit_nothing_in_embree() {
     let scene = scene("cornell-paper");
-    let embree = EmbreeAccel::build(&scene).unwrap();
+    let embree = EmbreeAccel::build(&scene.triangles).unwrap();
     for x in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
         for ray in [
             Ray::new(Vec3A::new(x, 0.0, 0.0), Vec3A::Z),
@@ -134,7 +134,7 @@ fn invalid_rays_hit_nothing_in_embree() {
 #[test]
 fn packets_match_single_rays() {
     let scene = scene("cornell-paper");
-    let embree = EmbreeAccel::build(&scene).unwrap();
+    let embree = EmbreeAccel::build(&scene.triangles).unwrap();
     let mut rng = SampleStream::in_domain(Domain::Camera, 29, 0, 0);
     let rays: Vec<Ray> = (0..1003)
         .map(|_| {
@@ -160,7 +160,7 @@ fn packets_match_single_rays() {
 fn rendered_images_of_both_backends_agree() {
     let scene = scene_at("cornell-paper", 64, 48);
     let reference = render_bvh(&scene, &mut PathTracer::default(), 8192, 2);
-    let embree = EmbreeAccel::build(&scene).unwrap();
+    let embree = EmbreeAccel::build(&scene.triangles).unwrap();
     let img = render(&scene, &embree, &mut PathTracer::default(), &settings(1024, 1)).unwrap().0;
     let (z, n) = max_block_z(&img, &reference, 16);
     let zg = max_image_z(&img, &reference);

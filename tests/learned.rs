@@ -86,7 +86,7 @@ fn learned_integrators_agree_with_path_reference() {
 #[test]
 fn learning_is_deterministic_across_threads_and_tiles() {
     let scene = scene_at("cornell-paper", 64, 48);
-    let accel = BvhAccel::build(&scene);
+    let accel = BvhAccel::build(&scene.triangles);
     let run = |threads, tile_size| {
         let s =
             RenderSettings { spp: Some(8), seed: 5, threads: Some(threads), tile_size, ..RenderSettings::default() };

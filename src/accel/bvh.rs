@@ -4,7 +4,6 @@
 //! edges escape a closed sphere.
 use super::Accel;
 use crate::geometry::{Hit, Ray, Vec3A, WatertightRay};
-use crate::scene::Scene;
 use obvhs::BvhBuildParams;
 use obvhs::cwbvh::{CwBvh, builder::build_cwbvh_from_tris};
 use obvhs::ray::{Ray as BvhRay, RayHit};
@@ -20,14 +19,9 @@ pub struct BvhAccel {
 }
 
 impl BvhAccel {
+    /// Builds over a scene's triangles (`Scene::triangles`; hits name them by index).
     #[must_use]
-    pub fn build(scene: &Scene) -> Self {
-        Self::from_triangles(&scene.triangles)
-    }
-
-    /// Builds over raw triangles (benchmarks and tests use this without a scene).
-    #[must_use]
-    pub fn from_triangles(tris: &[[glam::Vec3A; 3]]) -> Self {
+    pub fn build(tris: &[[glam::Vec3A; 3]]) -> Self {
         let input: Vec<Triangle> = tris.iter().map(|t| Triangle { v0: t[0], v1: t[1], v2: t[2] }).collect();
         // Medium quality: a good SAH-like tree from PLOC plus a little reinsertion, without
         // spatial splits so that every triangle sits in exactly one leaf.

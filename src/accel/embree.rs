@@ -13,8 +13,8 @@
 
 use super::Accel;
 use crate::geometry::{Hit, Ray};
-use crate::scene::Scene;
 use crate::{Error, Result};
+use glam::Vec3A;
 use std::ffi::{CStr, c_void};
 use std::marker::PhantomData;
 use std::ptr::{NonNull, null};
@@ -92,15 +92,15 @@ impl Drop for Device {
     }
 }
 
-/// An Embree scene over a [`Scene`]'s triangles, which it borrows: the vertex buffer is shared,
-/// not copied, so the scene must outlive it.
+/// An Embree scene over a scene's triangles (`Scene::triangles`), which it borrows: the vertex
+/// buffer is shared, not copied, so the triangles must outlive it.
 pub struct EmbreeAccel<'s> {
     raw: NonNull<sys::RTCSceneTy>,
     /// Kept alive for the geometry, which reads it.
     _indices: Vec<[u32; 3]>,
     /// Owns the device; dropped (released) after the scene, as fields drop after `drop()`.
     _device: Device,
-    _scene: PhantomData<&'s Scene>,
+    _triangles: PhantomData<&'s [[Vec3A; 3]]>,
 }
 
 // SAFETY: Embree scenes are safe to query from many threads at once after `rtcCommitScene`;
@@ -110,12 +110,12 @@ unsafe impl Sync for EmbreeAccel<'_> {}
 unsafe impl Send for EmbreeAccel<'_> {}
 
 impl<'s> EmbreeAccel<'s> {
-    pub fn build(scene: &'s Scene) -> Result<Self> {
+    pub fn build(triangles: &'s [[Vec3A; 3]]) -> Result<Self> {
         let device = Device::new()?;
-        let n = scene.triangles.len();
+        let n = triangles.len();
         let indices: Vec<[u32; 3]> = (0..n as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
         // SAFETY: `device.raw` is live. The shared vertex buffer points into
-        // `scene.triangles`, which is borrowed for 's (longer than this accel) and laid out as
+        // `triangles`, which is borrowed for 's (longer than this accel) and laid out as
         // 3·n `Vec3A` (x, y, z, pad) 16 bytes apart, so FLOAT3 with stride 16 reads each vertex
         // and Embree's 16-byte over-read of the last one stays inside the allocation. The index
         // buffer is owned by the returned struct, which releases the scene before dropping it.
@@ -129,7 +129,7 @@ impl<'s> EmbreeAccel<'s> {
                 sys::RTCBufferType_RTC_BUFFER_TYPE_VERTEX,
                 0,
                 sys::RTCFormat_RTC_FORMAT_FLOAT3,
-                scene.triangles.as_ptr() as *const c_void,
+                triangles.as_ptr() as *const c_void,
                 0,
                 16,
                 3 * n,
@@ -152,7 +152,7 @@ impl<'s> EmbreeAccel<'s> {
         };
         device.check("building the Embree scene")?;
         let raw = NonNull::new(raw).ok_or_else(|| Error::Backend("Embree returned no scene".into()))?;
-        Ok(Self { raw, _indices: indices, _device: device, _scene: PhantomData })
+        Ok(Self { raw, _indices: indices, _device: device, _triangles: PhantomData })
     }
 }
 

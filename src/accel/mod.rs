@@ -11,7 +11,7 @@ pub use bvh::BvhAccel;
 
 use crate::Result;
 use crate::geometry::{Hit, Ray};
-use crate::scene::Scene;
+use glam::Vec3A;
 
 /// A ray-tracing backend over a scene's triangles (in the scene's order).
 pub trait Accel: Sync {
@@ -83,23 +83,27 @@ pub trait WithAccel {
     fn run<A: Accel>(self, accel: &A) -> Self::Output;
 }
 
-/// Builds the chosen backend over `scene` and runs `job` with it: the one place where the
-/// backend is chosen at run time.
-pub fn with_backend<J: WithAccel>(kind: BackendKind, scene: &Scene, job: J) -> Result<J::Output> {
-    with_backend_timed(kind, scene, job).map(|(out, _)| out)
+/// Builds the chosen backend over a scene's triangles (`Scene::triangles`) and runs `job`
+/// with it: the one place where the backend is chosen at run time.
+pub fn with_backend<J: WithAccel>(kind: BackendKind, triangles: &[[Vec3A; 3]], job: J) -> Result<J::Output> {
+    with_backend_timed(kind, triangles, job).map(|(out, _)| out)
 }
 
 /// [`with_backend`], also returning the seconds the acceleration structure took to build.
-pub fn with_backend_timed<J: WithAccel>(kind: BackendKind, scene: &Scene, job: J) -> Result<(J::Output, f64)> {
+pub fn with_backend_timed<J: WithAccel>(
+    kind: BackendKind,
+    triangles: &[[Vec3A; 3]],
+    job: J,
+) -> Result<(J::Output, f64)> {
     kind.check_available()?;
     let start = std::time::Instant::now();
     #[cfg(feature = "embree")]
     if matches!(kind, BackendKind::Embree | BackendKind::Auto) {
-        let accel = embree::EmbreeAccel::build(scene)?;
+        let accel = embree::EmbreeAccel::build(triangles)?;
         let built = start.elapsed().as_secs_f64();
         return Ok((job.run(&accel), built));
     }
-    let accel = BvhAccel::build(scene);
+    let accel = BvhAccel::build(triangles);
     let built = start.elapsed().as_secs_f64();
     Ok((job.run(&accel), built))
 }

@@ -1,7 +1,7 @@
 //! `zvidpt merge`: partial renders of sample ranges into one image, bit-identical to a single
 //! render of all the samples.
 use super::*;
-use crate::render::Partial;
+use crate::film::Partial;
 
 #[derive(Debug, Args)]
 pub struct MergeArgs {

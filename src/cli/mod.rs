@@ -525,7 +525,8 @@ pub fn render_scene_with_aovs(
     settings: &RenderSettings,
     aovs: bool,
 ) -> Result<(Image, RenderStats, &'static str, Option<Aovs>)> {
-    let (out, built) = with_backend_timed(backend, scene, RenderJob { scene, integrator, photon, settings, aovs })?;
+    let (out, built) =
+        with_backend_timed(backend, &scene.triangles, RenderJob { scene, integrator, photon, settings, aovs })?;
     out.map(|(image, stats, name, aovs)| (image, RenderStats { build_seconds: built, ..stats }, name, aovs))
 }
 

@@ -4,7 +4,9 @@ mod atomic;
 mod exr_io;
 mod metrics;
 mod partial;
+mod passes;
 mod png_out;
+mod sums;
 
 pub use atomic::{
     Staged, check_destination, check_outputs, check_writable, commit, remove_pending_files, same_file, stage,
@@ -13,8 +15,11 @@ pub use atomic::{
 pub use exr_io::{read_exr, read_exr_from, stage_exr, stage_exr_with, write_exr};
 pub use metrics::{Metrics, error_map_png, metrics, metrics_of_rows};
 pub use partial::{PartialHeader, parse_partial, read_partial, read_partial_header, stage_partial, stage_sums};
+pub use passes::{PriorSamples, mean_and_variance, mean_variance};
 pub use png_out::write_rgb8 as write_rgb8_png;
 pub use png_out::{stage_png, to_srgb8, write_png};
+pub use sums::{Partial, PixelSums};
+pub(crate) use sums::{finish_pixel, to_fixed};
 
 /// Most pixels an image may have, rendered or read: 2^26 (e.g. 8192 × 8192). A render peaks
 /// at about 114 bytes per pixel (`path`) and 256 (`zvidpt`, training passes combined; 128-bit

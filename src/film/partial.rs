@@ -7,8 +7,7 @@
 //! varints (about 40 bytes a pixel instead of 96: a checkpoint's time is its disk write); a
 //! byte saying whether pre-pass samples follow, and if so their encoding.
 use super::{MAX_PIXELS, Metadata};
-use crate::integrator::passes::PriorSamples;
-use crate::render::{Partial, PixelSums};
+use super::{Partial, PixelSums, PriorSamples};
 use crate::{Error, Result};
 use std::io::Write;
 use std::path::Path;

@@ -946,7 +946,7 @@ mod tests {
     /// The guide `cornell-paper`'s photon map (`photons`, seed 1) seeds, `knn` per estimate.
     fn cornell_paper_seed(photons: usize, knn: usize) -> LearnedGuide {
         let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell-paper")).unwrap();
-        let accel = BvhAccel::build(&scene);
+        let accel = BvhAccel::build(&scene.triangles);
         let map = PhotonMap::build(&scene, &accel, photons, 1).unwrap();
         LearnedGuide::seed(&scene, &map, knn).unwrap()
     }

@@ -21,17 +21,15 @@
 //! the path tracer's rule: with it, this is PPG-style guided path tracing
 //! (`--integrator jensen --learned-guide on`).
 use super::guided::{BSDF_SHARE, guides_at, sample_mixture};
-use super::passes::mean_variance;
-use super::path::{Mis, PathTracer, survival_probability};
-use super::{
-    Integrator, PriorSamples, RenderContext, Scratch, direct_light_against, nee_strategy, power_heuristic, sample_bsdf,
-};
+use super::path::{Mis, PathTracer};
+use super::{Integrator, RenderContext, Scratch, direct_light_against, nee_strategy, power_heuristic, sample_bsdf};
 use crate::Result;
 use crate::accel::Accel;
+use crate::film::{PriorSamples, mean_variance};
 use crate::geometry::{Frame, UVec2, Vec3A, luminance, warp};
 use crate::guide::{Deposits, LearnedGuide, mixture_pdf};
 use crate::photon::PhotonMap;
-use crate::sampler::{Domain, SampleStream};
+use crate::sampler::{Domain, SampleStream, survival_probability};
 use crate::scene::SurfaceInteraction;
 use rayon::prelude::*;
 use std::f32::consts::FRAC_1_PI;

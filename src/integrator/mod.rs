@@ -4,18 +4,17 @@
 pub mod guided;
 mod jensen;
 pub mod learned;
-pub mod passes;
 pub mod path;
 mod zvidpt;
 
 pub use guided::GuideSettings;
 pub use jensen::Jensen;
 pub use learned::{LearnedSettings, LearnedZvidpt, Roulette};
-pub use passes::PriorSamples;
 pub use path::{Mis, PathTracer};
 pub use zvidpt::{Estimator, MAX_SUBPIXELS, Zvidpt};
 
 use crate::accel::Accel;
+use crate::film::PriorSamples;
 use crate::geometry::{Frame, Ray, UVec2, Vec3A, offset_ray_origin};
 use crate::sampler::SampleStream;
 use crate::scene::{LightSampling, Scene, SurfaceInteraction};

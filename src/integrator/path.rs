@@ -9,7 +9,7 @@ use super::{
 };
 use crate::accel::Accel;
 use crate::geometry::{Frame, UVec2, Vec3A};
-use crate::sampler::SampleStream;
+use crate::sampler::{SampleStream, survival_probability};
 use crate::scene::SurfaceInteraction;
 
 #[derive(Clone, Debug)]
@@ -55,14 +55,6 @@ impl Mis {
             Mis::Off => MisAt::NONE,
         }
     }
-}
-
-/// Survival probability for Russian roulette: the albedo's largest channel, capped so that a
-/// white (ρ = 1) closed scene still terminates. Any cap keeps the estimator unbiased.
-#[inline]
-#[must_use]
-pub fn survival_probability(albedo: Vec3A) -> f32 {
-    albedo.max_element().min(0.95)
 }
 
 impl Integrator for PathTracer {

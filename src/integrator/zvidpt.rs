@@ -9,13 +9,13 @@
 //!
 //! The weights are `W0 = 1/(n·m·Pj)` and `W(k+1) = Wk · f·cosθ / (pdf(ωi)·(1 − qk))`.
 use super::guided::{Guide, GuideSettings, radiance_estimate, termination_probability};
-use super::path::survival_probability;
 use super::{Integrator, MisAt, RenderContext, Scratch, direct_light};
 use crate::Result;
 use crate::accel::Accel;
 use crate::geometry::{UVec2, Vec2, Vec3A, luminance};
 use crate::photon::GridShape;
 use crate::photon::guide::pick_cell;
+use crate::sampler::survival_probability;
 use crate::sampler::{Domain, SampleStream};
 use crate::scene::SurfaceInteraction;
 

@@ -226,7 +226,7 @@ mod tests {
     #[test]
     fn lookups_find_nearby_records() {
         let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell-paper")).unwrap();
-        let accel = BvhAccel::build(&scene);
+        let accel = BvhAccel::build(&scene.triangles);
         let map = PhotonMap::build(&scene, &accel, 4000, 2).unwrap();
         let shape = GridShape { rows: 4, cols: 16 };
         let cache = GuideCache::build(&map, shape, 50, GuidePhotons::Indirect, 0.1, 1 << 16);

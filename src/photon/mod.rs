@@ -9,7 +9,7 @@ pub use guide::{GridShape, MAX_GUIDE_CELLS};
 
 use crate::accel::Accel;
 use crate::geometry::{Frame, Vec3A, luminance, warp};
-use crate::integrator::path::survival_probability;
+use crate::sampler::survival_probability;
 use crate::sampler::{Domain, SampleStream};
 use crate::scene::Scene;
 use crate::{Error, Result};
@@ -256,7 +256,7 @@ mod tests {
     #[test]
     fn deterministic_whatever_the_thread_count() {
         let scene = cornell();
-        let accel = BvhAccel::build(&scene);
+        let accel = BvhAccel::build(&scene.triangles);
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
         let a = one.install(|| PhotonMap::build(&scene, &accel, 5000, 3).unwrap());
@@ -271,7 +271,7 @@ mod tests {
     #[test]
     fn direct_photons_carry_the_emitted_power() {
         let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/furnace")).unwrap();
-        let accel = BvhAccel::build(&scene);
+        let accel = BvhAccel::build(&scene.triangles);
         let map = PhotonMap::build(&scene, &accel, 20_000, 1).unwrap();
         let direct: Vec3A = (0..map.len()).filter(|&i| map.bounce[i] == 0).map(|i| map.flux[i]).sum();
         let power = scene.emitted_power();

@@ -10,8 +10,8 @@
 //! the options, the seed and (for a learning integrator) the number of training iterations,
 //! which the checkpoint keeps. The resumed render rebuilds them and checks that the training
 //! samples in the image come out identical to the checkpoint's.
-use super::{Partial, PixelSums};
 use crate::film::{self, Metadata};
+use crate::film::{Partial, PixelSums, PriorSamples};
 use crate::{Error, Result};
 use std::path::{Path, PathBuf};
 
@@ -102,7 +102,7 @@ pub(super) fn write(
     size: (u32, u32),
     progress: &Progress,
     sums: impl Fn(usize) -> ([i128; 3], [i128; 3]),
-    prior: Option<&crate::integrator::passes::PriorSamples>,
+    prior: Option<&PriorSamples>,
 ) -> Result<()> {
     let mut meta = settings.meta.clone();
     meta.push(MARK, 1);
@@ -121,7 +121,7 @@ pub(super) fn check_fits(
     size: (u32, u32),
     first: u32,
     total_spp: u32,
-    prior: Option<&crate::integrator::passes::PriorSamples>,
+    prior: Option<&PriorSamples>,
 ) -> Result<()> {
     let p = &resume.part;
     let PixelSums { width, height, .. } = p.sums;

@@ -1,7 +1,7 @@
 //! Deterministic random streams. A stream is keyed by `(seed, pixel, sample index)` and yields
 //! one value per *dimension* by hashing the key with a dimension counter, so a pixel's samples
 //! never depend on which thread rendered it, in which tile, or in which order.
-use glam::Vec2;
+use glam::{Vec2, Vec3A};
 
 /// A counter-based random stream: value `d` of the stream is `hash(key, d)`.
 #[derive(Clone, Debug)]
@@ -122,6 +122,14 @@ fn owen_scramble(bits: u32, seed: u32) -> u32 {
     x ^= x.wrapping_mul(0xC7AF_E638);
     x ^= x.wrapping_mul(0x8D22_F6E6);
     x.reverse_bits()
+}
+
+/// Survival probability for Russian roulette: the albedo's largest channel, capped so that a
+/// white (ρ = 1) closed scene still terminates. Any cap keeps the estimator unbiased.
+#[inline]
+#[must_use]
+pub fn survival_probability(albedo: Vec3A) -> f32 {
+    albedo.max_element().min(0.95)
 }
 
 #[cfg(test)]

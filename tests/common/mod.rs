@@ -24,7 +24,7 @@ pub fn settings(spp: u32, seed: u64) -> RenderSettings {
 }
 
 pub fn render_bvh<I: Integrator>(scene: &Scene, integrator: &mut I, spp: u32, seed: u64) -> Image {
-    let accel = BvhAccel::build(scene);
+    let accel = BvhAccel::build(&scene.triangles);
     render(scene, &accel, integrator, &settings(spp, seed)).unwrap().0
 }
 
