@@ -1,4 +1,4 @@
-//! Convergence measurements (issue 6): error against a reference as a function of samples per
+//! Convergence measurements: error against a reference as a function of samples per
 //! pixel and of seconds, averaged over independent seeds, written as CSV.
 use crate::film::{Metrics, write_atomically};
 use crate::{Error, Result};

@@ -15,7 +15,7 @@ const LAYERS: &[&[&str]] = &[
     &["texture", "material", "light", "accel"],
     &["scene"],
     &["photon"],
-    &["guide"],
+    &["learned_guide"],
     &["integrator"],
     &["render"],
     &["plot", "batch"],

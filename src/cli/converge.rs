@@ -169,7 +169,7 @@ fn measure(
     seed: u64,
 ) -> Result<(RenderStats, crate::film::Metrics)> {
     let settings = args.settings(Some(spp), None, seed);
-    let (image, stats, _) = render_scene(scene, integrator, &args.photon, args.machine.backend, &settings)?;
+    let (image, stats, _) = render_scene(scene, &args.photon.integrator(integrator), args.machine.backend, &settings)?;
     let metrics = film::metrics(&image, reference)?;
     Ok((stats, metrics))
 }
@@ -235,7 +235,8 @@ fn equal_time_image(args: &ConvergeArgs, scene: &Scene, reference: &Image, secon
     for &integrator in &args.integrators {
         let name = flag_name(integrator);
         let settings = args.settings(None, Some(seconds), args.seed);
-        let (image, stats, _) = render_scene(scene, integrator, &args.photon, args.machine.backend, &settings)?;
+        let (image, stats, _) =
+            render_scene(scene, &args.photon.integrator(integrator), args.machine.backend, &settings)?;
         let m = film::metrics(&image, reference)?;
         out!("equal time {seconds} s: {name} {} spp, MSE {:.4e}, relMSE {:.4e}", stats.spp, m.mse, m.rel_mse);
         shots.push((format!("{name}\n{} spp, MSE {:.2e}", stats.spp, m.mse), image));

@@ -1,13 +1,11 @@
 //! The command line: one file per subcommand; the arguments they share, parsing, and the
 //! dispatch live here.
-use crate::accel::{Accel, BackendKind, WithAccel, with_backend_timed};
+use crate::accel::BackendKind;
 use crate::film::{self, Image, Metadata};
-use crate::integrator::{
-    Estimator, GuideSettings, Jensen, LearnedSettings, LearnedZvidpt, MAX_SUBPIXELS, Mis, PathTracer, Roulette, Zvidpt,
-};
+pub use crate::integrator::IntegratorKind;
+use crate::integrator::{Estimator, GuideSettings, IntegratorSettings, LearnedSettings, MAX_SUBPIXELS, Mis, Roulette};
 use crate::photon::{GridShape, GuidePhotons, MAX_GUIDE_CELLS};
-use crate::render::aov::{Aovs, first_hit_aovs};
-use crate::render::{RenderSettings, RenderStats, render};
+use crate::render::{RenderSettings, RenderStats, render_scene, render_scene_with_aovs};
 use crate::scene::{LightSampling, Scene};
 use crate::{Error, Result};
 use clap::{Args, Parser, Subcommand, ValueEnum};
@@ -98,22 +96,6 @@ pub enum Command {
     /// Merge partial renders of sample ranges (`render --samples A..B`) into one image,
     /// bit-identical to a single render of all the samples.
     Merge(MergeArgs),
-}
-
-/// Light-transport algorithm.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum IntegratorKind {
-    /// Path tracing with next event estimation (the paper's baseline).
-    Path,
-    /// Jensen 1995: path tracing with directions guided by the photon map.
-    Jensen,
-    /// ZVIDPT, terminal estimator (zero variance with exact photon estimates).
-    ZvidptTerminal,
-    /// ZVIDPT, collision estimator.
-    ZvidptCollision,
-    /// ZVIDPT with a learned importance function: guided directions, NEE at every vertex,
-    /// channel-aware zero-variance roulette and splitting of the indirect part.
-    Zvidpt,
 }
 
 /// On or off.
@@ -319,6 +301,29 @@ impl PhotonArgs {
         }
     }
 
+    /// The integrator `kind` with these settings.
+    #[must_use]
+    pub fn integrator(&self, kind: IntegratorKind) -> IntegratorSettings {
+        let guide = self.settings();
+        let paper = |estimator| IntegratorSettings::Paper {
+            estimator,
+            guide: guide.clone(),
+            pixel_grid: self.pixel_grid,
+            q_max: self.q_max,
+            q_kappa: self.q_kappa,
+        };
+        match kind {
+            IntegratorKind::Path => IntegratorSettings::Path { mis: self.mis },
+            IntegratorKind::Jensen if self.learned_guide == Switch::On => {
+                IntegratorSettings::Learned(self.learned(Roulette::Albedo))
+            }
+            IntegratorKind::Jensen => IntegratorSettings::Jensen(guide),
+            IntegratorKind::Zvidpt => IntegratorSettings::Learned(self.learned(self.roulette)),
+            IntegratorKind::ZvidptTerminal => paper(Estimator::Terminal),
+            IntegratorKind::ZvidptCollision => paper(Estimator::Collision),
+        }
+    }
+
     fn settings(&self) -> GuideSettings {
         GuideSettings {
             photons: self.photons,
@@ -465,69 +470,6 @@ fn locate_scene(path: &Path) -> PathBuf {
         }
     }
     path.to_path_buf()
-}
-
-/// Renders with whichever backend the user chose: the one dynamic choice, at the top.
-struct RenderJob<'a> {
-    scene: &'a Scene,
-    integrator: IntegratorKind,
-    photon: &'a PhotonArgs,
-    settings: &'a RenderSettings,
-    /// Trace first-hit AOVs after the render, with the same backend.
-    aovs: bool,
-}
-
-impl WithAccel for RenderJob<'_> {
-    type Output = Result<(Image, RenderStats, &'static str, Option<Aovs>)>;
-    fn run<A: Accel>(self, accel: &A) -> Self::Output {
-        let a = self.photon;
-        let guide = a.settings();
-        let zvidpt = |estimator| Zvidpt {
-            pixel_grid: a.pixel_grid,
-            q_max: a.q_max,
-            q_kappa: a.q_kappa,
-            ..Zvidpt::new(estimator, guide.clone())
-        };
-        let (scene, s) = (self.scene, self.settings);
-        let (image, stats) = match self.integrator {
-            IntegratorKind::Path => render(scene, accel, &mut PathTracer { mis: a.mis, ..PathTracer::default() }, s)?,
-            IntegratorKind::Jensen if a.learned_guide == Switch::On => {
-                render(scene, accel, &mut LearnedZvidpt::new(a.learned(Roulette::Albedo)), s)?
-            }
-            IntegratorKind::Jensen => render(scene, accel, &mut Jensen::new(guide.clone()), s)?,
-            IntegratorKind::Zvidpt => render(scene, accel, &mut LearnedZvidpt::new(a.learned(a.roulette)), s)?,
-            IntegratorKind::ZvidptTerminal => render(scene, accel, &mut zvidpt(Estimator::Terminal), s)?,
-            IntegratorKind::ZvidptCollision => render(scene, accel, &mut zvidpt(Estimator::Collision), s)?,
-        };
-        let aovs = self.aovs.then(|| first_hit_aovs(scene, accel, s.seed));
-        Ok((image, stats, accel.name(), aovs))
-    }
-}
-
-/// Renders `scene` with `integrator` on `backend`: the one place below the command line
-/// where the backend and the integrator are chosen. Returns the backend's name too.
-pub fn render_scene(
-    scene: &Scene,
-    integrator: IntegratorKind,
-    photon: &PhotonArgs,
-    backend: BackendKind,
-    settings: &RenderSettings,
-) -> Result<(Image, RenderStats, &'static str)> {
-    render_scene_with_aovs(scene, integrator, photon, backend, settings, false).map(|(i, s, b, _)| (i, s, b))
-}
-
-/// [`render_scene`], and the first-hit AOVs when `aovs`.
-pub fn render_scene_with_aovs(
-    scene: &Scene,
-    integrator: IntegratorKind,
-    photon: &PhotonArgs,
-    backend: BackendKind,
-    settings: &RenderSettings,
-    aovs: bool,
-) -> Result<(Image, RenderStats, &'static str, Option<Aovs>)> {
-    let (out, built) =
-        with_backend_timed(backend, &scene.triangles, RenderJob { scene, integrator, photon, settings, aovs })?;
-    out.map(|(image, stats, name, aovs)| (image, RenderStats { build_seconds: built, ..stats }, name, aovs))
 }
 
 /// Checks a command's options alone (no file is touched): what `run` checks first.

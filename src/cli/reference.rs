@@ -72,7 +72,8 @@ pub(super) fn run_reference(args: &ReferenceArgs) -> Result<()> {
         light_sampling: LightSampling::default(),
     };
     let photon = PhotonArgs::default_for_path();
-    let (image, stats, backend) = render_scene(&scene, IntegratorKind::Path, &photon, args.machine.backend, &settings)?;
+    let (image, stats, backend) =
+        render_scene(&scene, &photon.integrator(IntegratorKind::Path), args.machine.backend, &settings)?;
     let mut meta = Metadata::default();
     meta.push("scene", scene.path.display());
     meta.push("scene_hash", &hash);

@@ -213,8 +213,13 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     let integrator = args.integrator;
     let want = |a: Aov| args.aov.contains(&a);
     let first_hit = want(Aov::Albedo) || want(Aov::Normal) || want(Aov::Depth);
-    let (image, stats, backend, aovs) =
-        render_scene_with_aovs(&scene, integrator, &args.photon, args.machine.backend, &settings, first_hit)?;
+    let (image, stats, backend, aovs) = render_scene_with_aovs(
+        &scene,
+        &args.photon.integrator(integrator),
+        args.machine.backend,
+        &settings,
+        first_hit,
+    )?;
     // Layers named as tev and Open Image Denoise's tools expect (albedo.R, normal.X, Z).
     let mut layers: Vec<(String, Vec<f32>)> = Vec::new();
     if let Some(a) = &aovs {

@@ -2,9 +2,9 @@
 //! directions drawn from the photon `GL` grid (all photons), uniform pixel sampling, albedo
 //! Russian roulette and next event estimation at every vertex (collision-type accumulation).
 //! On a surface that is not Lambertian, directions come from a mixture of the BSDF's sampling
-//! and the grid ([`super::guided::sample_mixture`]).
-use super::guided::{Guide, GuideSettings};
+//! and the grid ([`super::mixture::sample_mixture`]).
 use super::path::{Mis, trace_path};
+use super::photon_guided::{GuideSettings, PhotonGuide};
 use super::{Integrator, RenderContext, Scratch};
 use crate::Result;
 use crate::accel::Accel;
@@ -15,7 +15,7 @@ use crate::sampler::SampleStream;
 pub struct Jensen {
     pub settings: GuideSettings,
     pub rr_depth: u32,
-    pub guide: Option<Guide>,
+    pub guide: Option<PhotonGuide>,
 }
 
 impl Jensen {
@@ -34,7 +34,7 @@ impl Integrator for Jensen {
     }
 
     fn prepare<A: Accel>(&mut self, ctx: &RenderContext<A>, seed: u64) -> Result<Option<String>> {
-        let guide = Guide::build(ctx.scene, ctx.accel, &self.settings, seed)?;
+        let guide = PhotonGuide::build(ctx.scene, ctx.accel, &self.settings, seed)?;
         let report = guide.report.to_string();
         self.guide = Some(guide);
         Ok(Some(report))

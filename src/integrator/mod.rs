@@ -1,17 +1,20 @@
 //! Integrators behind one trait, generic over the backend. An integrator picks its own film
 //! point inside the pixel (ZVIDPT importance-samples subpixels) and may keep per-pixel state
 //! built once before the pixel's first sample, and may run a pre-pass (the photon map).
-pub mod guided;
+mod choice;
 mod jensen;
-pub mod learned;
+pub mod mixture;
 pub mod path;
-mod zvidpt;
+pub mod photon_guided;
+pub mod zvidpt;
+mod zvidpt_paper;
 
-pub use guided::GuideSettings;
+pub use choice::{IntegratorKind, IntegratorSettings};
 pub use jensen::Jensen;
-pub use learned::{LearnedSettings, LearnedZvidpt, Roulette};
 pub use path::{Mis, PathTracer};
-pub use zvidpt::{Estimator, MAX_SUBPIXELS, Zvidpt};
+pub use photon_guided::GuideSettings;
+pub use zvidpt::{LearnedSettings, LearnedZvidpt, Roulette};
+pub use zvidpt_paper::{Estimator, MAX_SUBPIXELS, Zvidpt};
 
 use crate::accel::Accel;
 use crate::film::PriorSamples;

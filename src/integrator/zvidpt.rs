@@ -1,220 +1,865 @@
-//! Zero Variance Importance Sampling Driven Potential Tracing (paper §4, ALGORITHM.md §2–§3).
+//! `zvidpt`: ZVIDPT with a learned importance function.
 //!
-//! A camera random walk solves `Lr = L1 + ∫ f cos Lr(y) dω`: pixels are importance-sampled on
-//! a subpixel grid `Gp` (§4.1), directions on the photon `GL` grid (§4.2, Eq. 7), and the walk
-//! terminates with `q = L̃1/L̃r` (§4.3). Two unbiased estimators:
-//! - terminal: on termination at `xL`, `W0·Le(x0) + WL·L̂1(xL)/qL`; zero variance when the
-//!   photon estimates are exact;
-//! - collision: `Wk·L̂1(xk)` at every state, continuing with probability `1 − qk`.
+//! The paper's walk solves `Lr = L1 + ∫ f cos Lr(y) dω` from the camera. Here
+//! - `L̃` is learned from the render's own walks ([`crate::learned_guide::LearnedGuide`]), seeded by
+//!   the photon map: training iterations of 1, 2, 4, … samples per pixel, each sampling from
+//!   the guide frozen at the end of the previous one;
+//! - directions come from a one-sample mixture of the learned `f·cos·L̃r` quadtree and cosine
+//!   sampling, weighted by the mixture's own density (unbiased whatever was learned);
+//! - direct light is collected by NEE at every vertex (collision style): on the ceiling beside
+//!   the light, where `L1 ≫ Lind`, the terminal estimator's `q` sat at its 0.95 cap and a
+//!   continuing walk carried 1/(1−q) = 20; here the direct part is never gambled;
+//! - only the indirect part is rouletted or split, by a weight window in the sense of
+//!   Vorba & Křivánek 2016 (ADRRS) on the walk's expected indirect contribution relative to
+//!   the pixel's, summed over the three channels (so a red wall's growing red weight counts
+//!   as red, not as luminance): a walk expected to contribute r times the pixel's indirect
+//!   light is split into r (r above the window) or survives with probability r (below it).
+//!   Under exact `L̃` and guiding this is ALGORITHM.md's zero-variance roulette applied to
+//!   `Lind`: the survival after k vertices is the product of `Lind/Lr` along the walk.
 //!
-//! The weights are `W0 = 1/(n·m·Pj)` and `W(k+1) = Wk · f·cosθ / (pdf(ωi)·(1 − qk))`.
-use super::guided::{Guide, GuideSettings, radiance_estimate, termination_probability};
-use super::{Integrator, MisAt, RenderContext, Scratch, direct_light};
+//! `--roulette q` uses the paper's `q = L̃1/L̃r` (learned) instead, and `--roulette albedo`
+//! the path tracer's rule: with it, this is PPG-style guided path tracing
+//! (`--integrator jensen --learned-guide on`).
+use super::mixture::{BSDF_SHARE, guides_at, sample_mixture};
+use super::path::{Mis, PathTracer};
+use super::{Integrator, RenderContext, Scratch, direct_light_against, nee_strategy, power_heuristic, sample_bsdf};
 use crate::Result;
 use crate::accel::Accel;
-use crate::geometry::{UVec2, Vec2, Vec3A, luminance};
-use crate::photon::GridShape;
-use crate::photon::guide::pick_cell;
-use crate::sampler::survival_probability;
-use crate::sampler::{Domain, SampleStream};
+use crate::film::{PriorSamples, mean_variance};
+use crate::geometry::{Frame, UVec2, Vec3A, luminance, warp};
+use crate::learned_guide::{Deposits, LearnedGuide, mixture_pdf};
+use crate::photon::PhotonMap;
+use crate::sampler::{Domain, SampleStream, survival_probability};
 use crate::scene::SurfaceInteraction;
+use rayon::prelude::*;
+use std::f32::consts::FRAC_1_PI;
+use std::time::Instant;
 
-/// Most subpixels a pixel grid may have (the per-pixel state is a fixed array).
-pub const MAX_SUBPIXELS: usize = 32;
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Estimator {
-    Terminal,
-    Collision,
+/// How a walk decides whether (and how many times) to continue after a vertex.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Roulette {
+    /// Weight window on the expected indirect contribution, all channels (splits too).
+    Window,
+    /// The paper's zero-variance roulette: continue with probability `1 − q`, `q = L̃1/L̃r`.
+    Q,
+    /// The path tracer's: survival by albedo after 3 bounces (guided path tracing).
+    Albedo,
 }
 
-pub struct Zvidpt {
-    pub estimator: Estimator,
-    pub settings: GuideSettings,
-    /// The pixel grid `Gp` (paper: 2×4).
-    pub pixel_grid: GridShape,
-    /// `ε_p`: subpixel values are floored at this fraction of their mean.
-    pub pixel_floor: f32,
-    pub q_min: f32,
-    pub q_max: f32,
-    /// `κ` of [`termination_probability`] (1: ALGORITHM.md's `q = L̃1/L̃r`).
-    pub q_kappa: f32,
-    pub guide: Option<Guide>,
+/// Settings of the learned integrator.
+#[derive(Clone, Debug)]
+pub struct LearnedSettings {
+    /// Photons seeding the guide (the paper's first pass) and photons per seed estimate.
+    pub photons: usize,
+    pub knn: usize,
+    /// Samples a guide cell must receive in an iteration to be split (× √2 per iteration;
+    /// PPG's c).
+    pub split_samples: u64,
+    /// Probability of sampling the learned density (the rest: cosine sampling): fixed, or the
+    /// start of each cell's learned probability. 0.75 against 0.5: cornell-paper 20–24% lower
+    /// MSE at 32 spp for 11% more time; cornell-classic, cornell-blocks and partition 0–4%
+    /// lower MSE at equal time (20 s).
+    pub guide_mix: f32,
+    /// Learn each cell's probability (see [`crate::learned_guide::MIX_CANDIDATES`]), starting from
+    /// `guide_mix`. On by default since trees carry over between iterations: cornell-paper
+    /// 32 spp MSE 0.0184 on vs 0.0194 off; in the furnace, where cosine sampling is exact,
+    /// the variance falls 60× (cells learn 0). (Before the carry-over, on cost 15% there.)
+    pub learn_mix: bool,
+    /// Weight of earlier iterations' directional data per deposit when a tree is rebuilt
+    /// (0: each iteration's tree from its own deposits only, as PPG; 1: from all alike).
+    /// On cornell-paper (32 + 31 training spp, seeds 2 and 3) 0.25 and 0.5 lowered the MSE
+    /// 15–17% against 0; 0.75 matched 0 and 1 was 25% worse (early iterations' outliers
+    /// persist).
+    pub guide_carry: f32,
+    pub roulette: Roulette,
+    /// Weight-window width `s`: no action while the expected contribution ratio lies in
+    /// `[2/(1+s), 2s/(1+s)]`.
+    pub window: f32,
+    /// Most branches one vertex splits into.
+    pub max_split: u32,
+    /// Roulette around the learned `L̃ind` (a stopped walk returns it) instead of around 0.
+    pub control_variate: bool,
+    /// Probability of aiming at a cell's learned source box (where it has one).
+    pub box_mix: f32,
+    /// Training samples per pixel in all (iterations 1, 2, 4, … while they fit); `None`: half
+    /// the final sample count, or by the time budget's rule under `--time`.
+    pub train_spp: Option<u32>,
+    /// Where light that the walk's own directions find is weighed against NEE (power
+    /// heuristic, with the density of the mixture actually sampled): as `path`'s `--mis`.
+    /// Glossy vertices without it (NEE alone) were the learned integrators' fireflies on
+    /// near-specular coats (Bitterli's coffee and veach-mis).
+    pub mis: Mis,
+    /// Measure the path tracer during training and render with it instead where the learned
+    /// walk is less efficient ([`Choice`]).
+    pub fallback: bool,
 }
 
-impl Zvidpt {
-    #[must_use]
-    pub fn new(estimator: Estimator, settings: GuideSettings) -> Self {
+impl Default for LearnedSettings {
+    fn default() -> Self {
         Self {
-            estimator,
-            settings,
-            pixel_grid: GridShape { rows: 2, cols: 4 },
-            pixel_floor: 0.1,
-            q_min: 0.05,
-            q_max: 0.95,
-            q_kappa: 1.0,
-            guide: None,
+            photons: 6891,
+            knn: 50,
+            split_samples: 4000,
+            guide_mix: 0.75,
+            learn_mix: true,
+            guide_carry: 0.25,
+            roulette: Roulette::Window,
+            window: 5.0,
+            max_split: 8,
+            control_variate: true,
+            box_mix: 0.3,
+            train_spp: None,
+            mis: Mis::Glossy,
+            fallback: true,
         }
     }
 }
 
-/// A pixel's subpixel CDF (`Gp`), built once before its first sample.
+/// One training iteration, as reported.
 #[derive(Clone, Copy, Debug)]
-pub struct SubpixelGrid {
-    cdf: [f32; MAX_SUBPIXELS],
+pub struct Iteration {
+    pub spp: u32,
+    pub seconds: f64,
 }
 
-impl Integrator for Zvidpt {
-    type PixelState = SubpixelGrid;
+pub struct LearnedZvidpt {
+    pub settings: LearnedSettings,
+    pub guide: Option<LearnedGuide>,
+    pub iterations: Vec<Iteration>,
+    /// The training iterations' samples (those of at least 2 spp), which the image includes.
+    prior: Option<PriorSamples>,
+    /// What the training measured of the learned walk against the path tracer, if it did.
+    pub choice: Option<Choice>,
+    /// The path tracer that renders instead, when the learned walk lost ([`Choice`]).
+    path: Option<PathTracer>,
+}
+
+/// The learned walk against the path tracer, measured during and at the end of training: a probe of
+/// each walk from the same first hits ([`PROBE_SPP`] samples through the centres of a quarter
+/// of the pixels, not in the image; the learned walk with the guide the final render samples)
+/// gives the mean per-sample variance times the cost per sample of each. Cost is counted in
+/// rays, the learned walk's rays weighing [`LEARNED_RAY_COST`] each, so the choice is a
+/// function of scene, options and seed alone (never of the clock). Where the learned walk
+/// loses, the path tracer renders the rest; a first judgement as soon as the guide has
+/// [`MIN_TRAINING_SPP`] stops the training where the walk loses by more than
+/// [`EARLY_MARGIN`]. The training samples stay in the image (each pass unbiased, weighed by
+/// inverse variance). Either estimator is unbiased, and the choice looks only at
+/// samples that are not the final render's, so the image stays unbiased.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Choice {
+    /// Variance × rays per sample: the path probe's, the learned walk's last measured (its
+    /// rays weighed).
+    pub path: f64,
+    pub learned: f64,
+    /// Training samples per pixel before the probe.
+    pub after_spp: u32,
+    pub fell_back: bool,
+}
+
+/// Samples per probed pixel, for each walk.
+pub const PROBE_SPP: u32 = 8;
+/// At the first judgement (after [`MIN_TRAINING_SPP`]) the learned walk must lose by this
+/// factor to stop the training; at the end of training, by any.
+pub const EARLY_MARGIN: f64 = 1.5;
+/// Training samples per pixel the guide needs before it is judged (1 + 2 + 4: the youngest
+/// guides are no measure of the walk).
+pub const MIN_TRAINING_SPP: u32 = 7;
+/// Seconds per ray of the learned walk over the path tracer's (guide lookups, splitting):
+/// measured 1.12 (Bitterli's coffee), 1.22 (veach-mis), ... at 2 threads.
+pub const LEARNED_RAY_COST: f64 = 1.2;
+
+/// Under a time budget, training iterations run while the next would end within this
+/// fraction of it.
+pub const TRAIN_FRACTION: f64 = 0.35;
+
+/// Most branches one camera sample may grow into (bounds the cost of a sample).
+const MAX_BRANCHES: u32 = 64;
+/// Below this survival probability the window does not go (bounds weights when `L̃` is off).
+const MIN_SURVIVAL: f32 = 0.05;
+/// Set-up rays per pixel for its reference indirect radiance.
+const SETUP_RAYS: u32 = 4;
+
+impl LearnedZvidpt {
+    #[must_use]
+    pub fn new(settings: LearnedSettings) -> Self {
+        Self { settings, guide: None, iterations: Vec::new(), prior: None, choice: None, path: None }
+    }
+
+    /// Training samples actually spent.
+    #[must_use]
+    pub fn training_spp(&self) -> u32 {
+        self.iterations.iter().map(|i| i.spp).sum()
+    }
+
+    /// The continuation factor at a vertex: the expected number of continuations (below 1: a
+    /// survival probability). Any positive value keeps the estimator unbiased, since each
+    /// continuation is weighted by its inverse.
+    #[inline]
+    fn continuation(
+        &self,
+        albedo: Vec3A,
+        weight: Vec3A,
+        reference: f32,
+        est: Option<crate::learned_guide::CellEstimate>,
+        depth: u32,
+    ) -> f32 {
+        let f = match self.settings.roulette {
+            Roulette::Albedo => {
+                if depth >= 3 {
+                    survival_probability(albedo)
+                } else {
+                    1.0
+                }
+            }
+            Roulette::Q => match est {
+                Some(e) => {
+                    let (l1, lr) = (luminance(e.direct), luminance(e.direct + e.indirect));
+                    1.0 - if lr > 0.0 { (l1 / lr).clamp(0.05, 0.95) } else { 0.5 }
+                }
+                None => 0.5,
+            },
+            Roulette::Window => match est {
+                Some(e) => {
+                    let r = (weight * e.indirect).element_sum() / reference;
+                    let s = self.settings.window;
+                    let lower = 2.0 / (1.0 + s);
+                    if r.is_nan() {
+                        1.0
+                    } else if r < lower || r > s * lower {
+                        r.clamp(MIN_SURVIVAL, self.settings.max_split as f32)
+                    } else {
+                        1.0
+                    }
+                }
+                None => survival_probability(albedo),
+            },
+        };
+        // Long walks end: beyond 32 vertices at most 0.8 survive (unbiased, and the chance of
+        // a walk deeper than 500 is below 1e-45), and deep vertices never split.
+        if depth >= 32 { f.min(0.8) } else { f }
+    }
+
+    /// An unbiased estimate of `Lr` leaving `si` towards `si.wo`, from a walk (tree, when
+    /// split) carrying path weight `weight`; deposits what it learns when the guide learns.
+    #[allow(clippy::too_many_arguments)]
+    fn reflected<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        guide: &LearnedGuide,
+        si: &SurfaceInteraction,
+        weight: Vec3A,
+        reference: f32,
+        depth: u32,
+        branches: u32,
+        rng: &mut SampleStream,
+        scratch: &mut Scratch,
+        mut deposits: Option<&mut Deposits>,
+    ) -> Vec3A {
+        let Some(albedo) = si.material.lambertian() else {
+            return self.reflected_bsdf(ctx, guide, si, weight, reference, depth, branches, rng, scratch, deposits);
+        };
+        // Light reaching this vertex ends a path of `depth + 2` segments.
+        if albedo == Vec3A::ZERO || depth.saturating_add(2) > ctx.max_depth {
+            return Vec3A::ZERO;
+        }
+        let frame = Frame::from_normal(si.n);
+        let cell = guide.cell(si.p, si.n);
+        let est = guide.estimate(cell);
+        let alpha = guide.mix(cell);
+        let learning = deposits.is_some();
+        let tree = alpha > 0.0 || (learning && guide.has_tree(cell));
+        // The source box, sampled first with probability `beta`; else the mixture of the
+        // tree (`alpha`) and cosine sampling.
+        let source = guide.source_box(cell).copied();
+        let beta = if source.is_some() { guide.box_share(cell) } else { 0.0 };
+        let weigh = self.settings.mis.at(&si.material);
+        // NEE weighed against the density of the directions sampled below.
+        let density = |local: Vec3A, wi: Vec3A| {
+            if local.z <= 0.0 {
+                return 0.0;
+            }
+            let learned = if tree { guide.pdf(cell, local) } else { 0.0 };
+            let box_pdf = match source {
+                Some(b) if beta > 0.0 => b.pdf(si.p, wi),
+                _ => 0.0,
+            };
+            beta * box_pdf + (1.0 - beta) * mixture_pdf(alpha, learned, local.z)
+        };
+        let direct = direct_light_against(ctx, si, &frame, frame.to_local(si.wo), weigh, rng, scratch, density);
+        let mut f = self.continuation(albedo, weight, reference, est, depth);
+        if f > 1.0 && (depth >= 16 || branches * (f.ceil() as u32) > MAX_BRANCHES) {
+            f = 1.0;
+        }
+        // Stochastic rounding: n continuations with E[n] = f, each weighted 1/f.
+        let u = rng.next_f32();
+        let n = f.floor() as u32 + u32::from(u < f - f.floor());
+        let mut indirect = Vec3A::ZERO;
+        if n > 0 {
+            for _ in 0..n {
+                let u_pick = rng.next_f32();
+                let u_dir = rng.next_2d();
+                // Local directions (z = normal); the learned density from the leaf a guided
+                // direction came from, or looked up otherwise.
+                let (local, wi, learned) = match source {
+                    Some(b) if u_pick < beta => {
+                        let Some(wi) = b.sample(si.p, Vec3A::new(u_dir.x, u_dir.y, u_pick / beta)) else {
+                            continue;
+                        };
+                        let local = frame.to_local(wi);
+                        (local, wi, if tree && local.z > 0.0 { guide.pdf(cell, local) } else { 0.0 })
+                    }
+                    _ => {
+                        let u_pick = (u_pick - beta) / (1.0 - beta);
+                        let (local, learned) = if u_pick < alpha {
+                            guide.sample(cell, u_dir)
+                        } else {
+                            let w = warp::cosine_hemisphere(u_dir);
+                            (w, if tree { guide.pdf(cell, w) } else { 0.0 })
+                        };
+                        (local, frame.to_world(local), learned)
+                    }
+                };
+                let cos = local.z;
+                if cos <= 0.0 {
+                    continue;
+                }
+                // Needed where the box is sampled, or for the moments that learn `beta`.
+                let box_pdf = match source {
+                    Some(b) if beta > 0.0 || learning => b.pdf(si.p, wi),
+                    _ => 0.0,
+                };
+                let pdf = beta * box_pdf + (1.0 - beta) * mixture_pdf(alpha, learned, cos);
+                // f·cosθ/pdf for a Lambertian surface (the cosine at its shading normal).
+                let cos_s = cos * si.shading_ratio(wi, cos);
+                if cos_s <= 0.0 {
+                    continue;
+                }
+                let throughput = albedo * (cos_s * FRAC_1_PI / pdf);
+                let ray = si.spawn_ray(wi);
+                scratch.rays += 1;
+                let mut source_point = None;
+                let li = match ctx.accel.intersect(&ray) {
+                    Some(hit) => {
+                        let next = ctx.scene.interaction(&ray, &hit);
+                        source_point = Some(next.p);
+                        let seen = if weigh.surfaces { self.found_emission(ctx, si, &next, pdf) } else { Vec3A::ZERO };
+                        seen + self.reflected(
+                            ctx,
+                            guide,
+                            &next,
+                            weight * throughput / f,
+                            reference,
+                            depth + 1,
+                            branches * n,
+                            rng,
+                            scratch,
+                            deposits.as_deref_mut(),
+                        )
+                    }
+                    None if weigh.environment => found_environment(ctx, wi, pdf),
+                    None => Vec3A::ZERO,
+                };
+                indirect += throughput * li;
+                if let Some(d) = deposits.as_deref_mut() {
+                    // The zero-variance target f·cos·Lr: Σ_channels (ρ/π·Lr)·cos / pdf.
+                    let g = (albedo * li).element_sum() * cos_s * FRAC_1_PI;
+                    guide.deposit_direction(d, cell, local, g / pdf);
+                    guide.deposit_moments(d, cell, g, pdf, learned, cos * FRAC_1_PI, source.map(|_| box_pdf));
+                    if let Some(y) = source_point {
+                        guide.deposit_source(d, cell, y, g / pdf);
+                    }
+                }
+            }
+        }
+        // Roulette and splitting around the learned value (a control variate): a walk that
+        // stops returns `L̃ind`, and the continuations correct it, `X = L̃ind + Σᵢ(Sᵢ − L̃ind)/f`.
+        // E[X] = L̃ind + E[n]·(Lind − L̃ind)/f = Lind for any `L̃ind`, and a stopped walk costs
+        // `(Lind − L̃ind)²` instead of `Lind²`: with an exact `L̃` the roulette adds no noise,
+        // which is ALGORITHM.md's zero-variance termination in collision form. Only
+        // walk-learned values serve: a photon density from a starved map can be orders of
+        // magnitude off.
+        let cv = match est {
+            Some(e) if self.settings.control_variate && e.from_walks => e.indirect,
+            _ => Vec3A::ZERO,
+        };
+        let indirect = cv + (indirect - cv * n as f32) / f;
+        if let Some(d) = deposits {
+            guide.deposit_estimates(d, cell, si.p, direct, indirect);
+        }
+        direct + indirect
+    }
+
+    /// [`Self::reflected`] at a surface that is not Lambertian: NEE unless the BSDF is pure
+    /// delta, roulette by albedo after 3 vertices, directions from the BSDF's sampling mixed
+    /// with the cell's learned density where it has one ([`sample_mixture`]), emission behind a
+    /// delta lobe counted. The guide learns nothing here (its densities and estimates stand
+    /// for Lambertian surfaces), and the walk's continuation carries no control variate.
+    #[allow(clippy::too_many_arguments)]
+    fn reflected_bsdf<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        guide: &LearnedGuide,
+        si: &SurfaceInteraction,
+        weight: Vec3A,
+        reference: f32,
+        depth: u32,
+        branches: u32,
+        rng: &mut SampleStream,
+        scratch: &mut Scratch,
+        deposits: Option<&mut Deposits>,
+    ) -> Vec3A {
+        let albedo = si.material.albedo();
+        if albedo == Vec3A::ZERO || depth.saturating_add(2) > ctx.max_depth {
+            return Vec3A::ZERO;
+        }
+        let frame = si.bsdf_frame();
+        let wi = frame.to_local(si.wo);
+        let cell = guide.cell(si.p, si.n);
+        let guide_frame = si.gather_frame(&frame);
+        let bsdf = &si.material.bsdf;
+        let guided = guides_at(bsdf) && guide.has_tree(cell);
+        let weigh = self.settings.mis.at(&si.material);
+        let direct = if bsdf.is_delta() {
+            Vec3A::ZERO
+        } else {
+            // NEE weighed against the density of the directions sampled below.
+            let density = |local: Vec3A, w: Vec3A| {
+                let p = bsdf.pdf(wi, local);
+                if guided { BSDF_SHARE * p + (1.0 - BSDF_SHARE) * guide.pdf(cell, guide_frame.to_local(w)) } else { p }
+            };
+            direct_light_against(ctx, si, &frame, wi, weigh, rng, scratch, density)
+        };
+        let q = if depth >= 3 { survival_probability(albedo) } else { 1.0 };
+        let q = if depth >= 32 { q.min(0.8) } else { q };
+        if rng.next_f32() >= q {
+            return direct;
+        }
+        let scatter = if guided {
+            sample_mixture(
+                si,
+                &frame,
+                wi,
+                &guide_frame,
+                rng,
+                |rng| guide.sample(cell, rng.next_2d()).0,
+                |w| guide.pdf(cell, w),
+            )
+        } else {
+            sample_bsdf(si, &frame, wi, rng)
+        };
+        let Some(s) = scatter else {
+            return direct;
+        };
+        let throughput = s.weight / q;
+        let ray = si.spawn_ray(s.dir);
+        scratch.rays += 1;
+        let Some(hit) = ctx.accel.intersect(&ray) else {
+            // The environment: all of it behind a delta lobe, else its share against NEE.
+            let env = if s.delta {
+                ctx.scene.environment(s.dir)
+            } else if weigh.environment {
+                found_environment(ctx, s.dir, s.pdf)
+            } else {
+                Vec3A::ZERO
+            };
+            return direct + throughput * env;
+        };
+        let next = ctx.scene.interaction(&ray, &hit);
+        let seen = if s.delta {
+            next.emitted()
+        } else if weigh.surfaces {
+            self.found_emission(ctx, si, &next, s.pdf)
+        } else {
+            Vec3A::ZERO
+        };
+        let li = seen
+            + self.reflected(
+                ctx,
+                guide,
+                &next,
+                weight * throughput,
+                reference,
+                depth + 1,
+                branches,
+                rng,
+                scratch,
+                deposits,
+            );
+        direct + throughput * li
+    }
+
+    /// Emission at `next` found by a direction of density `pdf` sampled at `si`, weighed
+    /// against NEE's density of the same point (power heuristic).
+    #[inline]
+    fn found_emission<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        si: &SurfaceInteraction,
+        next: &SurfaceInteraction,
+        pdf: f32,
+    ) -> Vec3A {
+        let emitted = next.emitted();
+        if emitted == Vec3A::ZERO {
+            return emitted;
+        }
+        let strategy = nee_strategy(ctx.light_sampling, si);
+        emitted * power_heuristic(pdf, ctx.scene.emitter_pdf(si.p, si.n, strategy, next.prim, next.p))
+    }
+
+    /// The pixel's reference indirect radiance (summed over channels) for the weight window:
+    /// the mean learned `L̃ind` at the first hits of a few set-up rays.
+    fn pixel_reference<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        guide: &LearnedGuide,
+        pixel: UVec2,
+        seed: u64,
+        scratch: &mut Scratch,
+    ) -> f32 {
+        let index = pixel.y as u64 * ctx.scene.camera.width as u64 + pixel.x as u64;
+        let mut rng = SampleStream::in_domain(Domain::PixelSetup, seed, index, 1);
+        let mut sum = 0.0;
+        for _ in 0..SETUP_RAYS {
+            let ray = ctx.scene.camera.ray(ctx.scene.camera.film_point(pixel, rng.next_2d()));
+            scratch.rays += 1;
+            if let Some(hit) = ctx.accel.intersect(&ray) {
+                let si = ctx.scene.interaction(&ray, &hit);
+                if let Some(e) = guide.estimate(guide.cell(si.p, si.n)) {
+                    sum += e.indirect.element_sum();
+                }
+            }
+        }
+        (sum / SETUP_RAYS as f32).max(1e-4)
+    }
+
+    /// One camera sample: emission seen directly, plus the walk's estimate of `Lr`
+    /// (depositing what it learns into `deposits` in a training iteration).
+    #[allow(clippy::too_many_arguments)]
+    fn camera_sample<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        guide: &LearnedGuide,
+        pixel: UVec2,
+        reference: f32,
+        rng: &mut SampleStream,
+        scratch: &mut Scratch,
+        deposits: Option<&mut Deposits>,
+    ) -> Vec3A {
+        let ray = ctx.scene.camera.ray(ctx.scene.camera.film_point(pixel, rng.pixel_2d()));
+        scratch.rays += 1;
+        // Paths of at most `max_depth` segments: the camera's is the first.
+        if ctx.max_depth == 0 {
+            return Vec3A::ZERO;
+        }
+        let Some(hit) = ctx.accel.intersect(&ray) else {
+            return ctx.scene.environment(ray.dir);
+        };
+        let si = ctx.scene.interaction(&ray, &hit);
+        si.emitted() + self.reflected(ctx, guide, &si, Vec3A::ONE, reference, 0, 1, rng, scratch, deposits)
+    }
+
+    /// One training iteration over the whole image at `spp`; returns what its walks
+    /// deposited, and each pixel's sums and sums of squares (row-major).
+    fn train_pass<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        guide: &LearnedGuide,
+        seed: u64,
+        spp: u32,
+    ) -> (Deposits, Vec<[f64; 3]>, Vec<[f64; 3]>) {
+        type Row = Vec<([f64; 3], [f64; 3])>;
+        let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
+        // Each worker deposits into its own accumulators, summed afterwards (integer sums:
+        // the same bits however rayon split the rows).
+        let (deposits, mut rows) = (0..height)
+            .into_par_iter()
+            .with_min_len(4)
+            .fold(
+                || (guide.deposits(), Vec::<(u32, Row)>::new()),
+                |(mut deposits, mut rows), y| {
+                    let mut scratch = Scratch::default();
+                    let mut row = Vec::new();
+                    for x in 0..width {
+                        let pixel = UVec2::new(x, y);
+                        let reference = self.pixel_reference(ctx, guide, pixel, seed, &mut scratch);
+                        let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
+                        // Iteration k takes samples 2^k .. 2^(k+1) of the pixel's sequence (an
+                        // aligned block: stratified by itself, and with the others).
+                        for s in spp..2 * spp {
+                            let mut rng = SampleStream::new(seed, y * width + x, s);
+                            let v = self.camera_sample(
+                                ctx,
+                                guide,
+                                pixel,
+                                reference,
+                                &mut rng,
+                                &mut scratch,
+                                Some(&mut deposits),
+                            );
+                            let v = if v.is_finite() { v } else { Vec3A::ZERO };
+                            for c in 0..3 {
+                                sum[c] += f64::from(v[c]);
+                                sum_sq[c] += f64::from(v[c]) * f64::from(v[c]);
+                            }
+                        }
+                        row.push((sum, sum_sq));
+                    }
+                    rows.push((y, row));
+                    (deposits, rows)
+                },
+            )
+            .reduce(
+                || (Deposits::default(), Vec::new()),
+                |(a, mut rows), (b, more)| {
+                    rows.extend(more);
+                    (a.merge(b), rows)
+                },
+            );
+        rows.sort_unstable_by_key(|r| r.0);
+        let (sum, sum_sq) = rows.into_iter().flat_map(|r| r.1).unzip();
+        (deposits, sum, sum_sq)
+    }
+
+    /// Probes both walks (the path tracer's once, kept in `path_probe`) and records the
+    /// choice: the learned walk falls back when its figure exceeds `margin` times path's.
+    fn judge<A: Accel>(
+        &mut self,
+        ctx: &RenderContext<A>,
+        path: &PathTracer,
+        guide: &LearnedGuide,
+        seed: u64,
+        path_probe: &mut Option<(f64, f64)>,
+        margin: f64,
+    ) -> Choice {
+        let (v_path, rays_path) = *path_probe.get_or_insert_with(|| self.probe(ctx, path, None, seed));
+        let (v_learned, rays_learned) = self.probe(ctx, path, Some(guide), seed);
+        let (p, l) = (v_path * rays_path, v_learned * rays_learned * LEARNED_RAY_COST);
+        let c = Choice { path: p, learned: l, after_spp: self.training_spp(), fell_back: l > margin * p };
+        self.choice = Some(c);
+        c
+    }
+
+    /// A probe of the walks: over every second pixel of every second row (a quarter of the
+    /// image), [`PROBE_SPP`] samples through the pixel's centre, so that every sample starts
+    /// from the same first hit and the spread is the walk's alone (the pixel footprint's
+    /// variance, which both estimators share and the pixel's (0,2)-sequence removes from the
+    /// image, would otherwise dominate: on `cornell-paper` at 256×192 the per-sample variance
+    /// was 8.0 for path and 3.6 for the learned walk, whose MSE is a tenth of path's).
+    /// Returns the mean per-sample variance and the rays per sample; the path tracer's walk
+    /// when `guide` is `None`, else the learned walk from `guide`. Sample streams of their own.
+    fn probe<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        path: &PathTracer,
+        guide: Option<&LearnedGuide>,
+        seed: u64,
+    ) -> (f64, f64) {
+        let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
+        let (mut rows, rays) = (0..height.div_ceil(2))
+            .into_par_iter()
+            .map(|i| 2 * i)
+            .with_min_len(2)
+            .fold(
+                || (Vec::new(), 0u64),
+                |(mut rows, rays), y| {
+                    let mut scratch = Scratch::default();
+                    let row: Vec<([f64; 3], [f64; 3])> = (0..width)
+                        .step_by(2)
+                        .map(|x| {
+                            let pixel = UVec2::new(x, y);
+                            let index = u64::from(y * width + x);
+                            let reference =
+                                guide.map_or(0.0, |g| self.pixel_reference(ctx, g, pixel, seed, &mut scratch));
+                            let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
+                            for s in 0..PROBE_SPP {
+                                // Keyed apart for the two walks; the film point is the centre.
+                                let key = 2 * u64::from(s) + u64::from(guide.is_some());
+                                let mut rng = SampleStream::in_domain(Domain::Probe, seed, index, key);
+                                let v = match guide {
+                                    Some(g) => {
+                                        self.camera_sample(ctx, g, pixel, reference, &mut rng, &mut scratch, None)
+                                    }
+                                    None => path.sample(ctx, pixel, &(), &mut rng, &mut scratch),
+                                };
+                                let v = if v.is_finite() { v } else { Vec3A::ZERO };
+                                for c in 0..3 {
+                                    sum[c] += f64::from(v[c]);
+                                    sum_sq[c] += f64::from(v[c]) * f64::from(v[c]);
+                                }
+                            }
+                            (sum, sum_sq)
+                        })
+                        .collect();
+                    rows.push((y, row));
+                    (rows, rays + scratch.rays)
+                },
+            )
+            .reduce(
+                || (Vec::new(), 0),
+                |(mut rows, r), (more, s)| {
+                    rows.extend(more);
+                    (rows, r + s)
+                },
+            );
+        rows.sort_unstable_by_key(|r: &(u32, Vec<_>)| r.0);
+        let (sum, sum_sq): (Vec<_>, Vec<_>) = rows.into_iter().flat_map(|r| r.1).unzip();
+        let samples = sum.len() as f64 * f64::from(PROBE_SPP);
+        (mean_variance(PROBE_SPP, &sum, &sum_sq), rays as f64 / samples.max(1.0))
+    }
+}
+
+/// The environment seen along `dir`, sampled with density `pdf`, weighed against NEE's.
+#[inline]
+fn found_environment<A: Accel>(ctx: &RenderContext<A>, dir: Vec3A, pdf: f32) -> Vec3A {
+    let env = ctx.scene.environment(dir);
+    if env == Vec3A::ZERO { env } else { env * power_heuristic(pdf, ctx.scene.environment_pdf(dir)) }
+}
+
+impl Integrator for LearnedZvidpt {
+    type PixelState = f32;
 
     fn name(&self) -> &'static str {
-        match self.estimator {
-            Estimator::Terminal => "zvidpt-terminal",
-            Estimator::Collision => "zvidpt-collision",
+        match self.settings.roulette {
+            Roulette::Albedo => "jensen-learned",
+            _ => "zvidpt",
         }
     }
 
     fn prepare<A: Accel>(&mut self, ctx: &RenderContext<A>, seed: u64) -> Result<Option<String>> {
-        let guide = Guide::build(ctx.scene, ctx.accel, &self.settings, seed)?;
-        let report = guide.report.to_string();
+        let start = Instant::now();
+        let map = PhotonMap::build(ctx.scene, ctx.accel, self.settings.photons, seed)?;
+        let mut guide = LearnedGuide::seed(ctx.scene, &map, self.settings.knn)?;
+        guide.split_samples = self.settings.split_samples;
+        guide.set_mix(self.settings.guide_mix);
+        guide.learn_mix = self.settings.learn_mix;
+        guide.carry = self.settings.guide_carry;
+        guide.box_mix = self.settings.box_mix;
+        let seeded = start.elapsed().as_secs_f64();
+        drop(map);
+        self.iterations.clear();
+        // Training budget: iterations of 1, 2, 4, … spp. With a sample count, their total
+        // stays within `train_spp` (half the final count by default). With a time budget,
+        // iterations run while the next (about twice the last) would end within
+        // TRAIN_FRACTION of the budget. Either way the rule never looks at the samples' values.
+        // Every iteration of at least 2 spp goes into the image by inverse-variance weights
+        // that are independent of each pixel's own values (`passes`): unbiased.
+        let spp_budget = self.settings.train_spp.or_else(|| ctx.spp.map(|n| (n / 2).max(1)));
+        let time_budget = if spp_budget.is_none() { ctx.time_limit } else { None };
+        // Iterations that fit the sample budget: 1 + 2 + … + 2^(k−1) = 2^k − 1 ≤ budget.
+        let planned = spp_budget.map(|b| (u64::from(b) + 1).ilog2().min(16));
+        let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
+        let mut prior = PriorSamples::new(width, height);
+        self.choice = None;
+        self.path = None;
+        let mut path_probe = None;
+        let path = PathTracer { mis: self.settings.mis, ..PathTracer::default() };
+        for k in 0..16u32 {
+            let spp = 1u32 << k;
+            match (ctx.training_iterations.or(planned), time_budget) {
+                (Some(n), _) => {
+                    if k >= n {
+                        break;
+                    }
+                }
+                (None, Some(t)) => {
+                    // An iteration takes about twice its predecessor (first: an estimate).
+                    let elapsed = ctx.start.elapsed().as_secs_f64();
+                    let next = self.iterations.last().map_or(0.0, |i| 2.0 * i.seconds);
+                    if k > 0 && elapsed + next > TRAIN_FRACTION * t {
+                        break;
+                    }
+                }
+                (None, None) => break,
+            }
+            let t = Instant::now();
+            guide.begin_iteration();
+            let (deposits, sum, sum_sq) = self.train_pass(ctx, &guide, seed, spp);
+            guide.end_iteration(k, deposits)?;
+            prior.add_pass(spp, &sum, &sum_sq);
+            self.iterations.push(Iteration { spp, seconds: t.elapsed().as_secs_f64() });
+            // The first judgement, as soon as the guide has its minimum training: a walk that
+            // loses clearly stops the training there.
+            if self.settings.fallback && self.choice.is_none() && self.training_spp() >= MIN_TRAINING_SPP {
+                let c = self.judge(ctx, &path, &guide, seed, &mut path_probe, EARLY_MARGIN);
+                if c.fell_back {
+                    self.path = Some(path.clone());
+                    break;
+                }
+            }
+        }
+        // The choice, with the guide the final render would sample (the figures of the first
+        // judgement if the guide has not changed since).
+        if self.settings.fallback && self.path.is_none() {
+            let c = match self.choice {
+                Some(c) if c.after_spp == self.training_spp() => Some(Choice { fell_back: c.learned > c.path, ..c }),
+                _ if self.training_spp() >= MIN_TRAINING_SPP => {
+                    Some(self.judge(ctx, &path, &guide, seed, &mut path_probe, 1.0))
+                }
+                _ => None,
+            };
+            self.choice = c;
+            if c.is_some_and(|c| c.fell_back) {
+                self.path = Some(path.clone());
+            }
+        }
+        prior.finish();
+        self.prior = (!prior.is_empty()).then_some(prior);
+        let stats = guide.stats();
         self.guide = Some(guide);
-        Ok(Some(report))
+        let training: Vec<String> = self.iterations.iter().map(|i| format!("{}", i.spp)).collect();
+        let choice = match self.choice {
+            Some(c) => format!(
+                "; walk probe ({PROBE_SPP} spp, variance x rays per sample) after {} training spp: learned {:.3e}, path {:.3e}: {}",
+                c.after_spp,
+                c.learned,
+                c.path,
+                if c.fell_back { "path renders the rest" } else { "learned walk kept" }
+            ),
+            None => String::new(),
+        };
+        Ok(Some(format!(
+            "photon seed {:.3} s; guide {stats}; training {} spp ({}) in {:.2} s, {} of them in the image{choice}",
+            seeded,
+            self.training_spp(),
+            if training.is_empty() { "none".to_string() } else { training.join("+") },
+            self.iterations.iter().map(|i| i.seconds).sum::<f64>(),
+            self.prior.as_ref().map_or(0, |p| p.spp)
+        )))
     }
 
-    /// Paper §4.1: one camera ray through a jittered point of each subpixel, `vj = lum(Le +
-    /// L̃r)` at its first hit, floored by `ε_p · mean(v)`; uniform if all are zero.
-    fn setup_pixel<A: Accel>(
-        &self,
-        ctx: &RenderContext<A>,
-        pixel: UVec2,
-        seed: u64,
-        scratch: &mut Scratch,
-    ) -> SubpixelGrid {
-        let guide = self.guide.as_ref().expect("prepare() builds the photon map");
-        let shape = self.pixel_grid;
-        let n = shape.cells();
-        let index = pixel.y as u64 * ctx.scene.camera.width as u64 + pixel.x as u64;
-        let mut rng = SampleStream::in_domain(Domain::PixelSetup, seed, index, 0);
-        let mut cdf = [0.0f32; MAX_SUBPIXELS];
-        for (j, v) in cdf.iter_mut().enumerate().take(n) {
-            let film = ctx.scene.camera.film_point(pixel, subpixel_point(shape, j, rng.next_2d()));
-            let ray = ctx.scene.camera.ray(film);
-            scratch.rays += 1;
-            *v = match ctx.accel.intersect(&ray) {
-                Some(hit) => {
-                    let si = ctx.scene.interaction(&ray, &hit);
-                    let lr = radiance_estimate(si.material.albedo(), guide.density_at(&si).all);
-                    luminance(si.emitted() + lr)
-                }
-                None => luminance(ctx.scene.environment(ray.dir)),
-            };
+    fn prior_samples(&self) -> Option<&PriorSamples> {
+        self.prior.as_ref()
+    }
+
+    fn training_iterations(&self) -> Option<u32> {
+        Some(self.iterations.len() as u32)
+    }
+
+    /// Training iteration k took samples 2^k .. 2^(k+1); the render continues the sequence.
+    fn first_sample_index(&self) -> u32 {
+        if self.iterations.is_empty() { 0 } else { 1 << self.iterations.len() }
+    }
+
+    fn setup_pixel<A: Accel>(&self, ctx: &RenderContext<A>, pixel: UVec2, seed: u64, scratch: &mut Scratch) -> f32 {
+        if self.path.is_some() {
+            return 0.0;
         }
-        crate::photon::guide::weights_to_cdf(&mut cdf[..n], self.pixel_floor);
-        SubpixelGrid { cdf }
+        let guide = self.guide.as_ref().expect("prepare() builds the guide");
+        self.pixel_reference(ctx, guide, pixel, seed, scratch)
     }
 
     fn sample<A: Accel>(
         &self,
         ctx: &RenderContext<A>,
         pixel: UVec2,
-        grid: &SubpixelGrid,
+        reference: &f32,
         rng: &mut SampleStream,
         scratch: &mut Scratch,
     ) -> Vec3A {
-        let guide = self.guide.as_ref().expect("prepare() builds the photon map");
-        let shape = self.pixel_grid;
-        let n = shape.cells();
-        let cdf = &grid.cdf[..n];
-        // The sample's stratified pixel point picks the subpixel by inverting Gp's CDF along x
-        // and, rescaled, places the point inside it: the film point's density is `n·Pj`, and
-        // the pixel's stratification carries over to its subpixels.
-        let u = rng.pixel_2d();
-        let (j, pj, ux) = pick_cell(cdf, u.x);
-        let film = ctx.scene.camera.film_point(pixel, subpixel_point(shape, j, Vec2::new(ux, u.y)));
-        let ray = ctx.scene.camera.ray(film);
-        scratch.rays += 1;
-        let weight = Vec3A::splat(1.0 / (n as f32 * pj));
-        let Some(hit) = ctx.accel.intersect(&ray) else {
-            return weight * ctx.scene.environment(ray.dir);
-        };
-        let si = ctx.scene.interaction(&ray, &hit);
-        let mut grid = std::mem::take(&mut scratch.grid);
-        let value = self.walk(ctx, guide, si, weight, rng, scratch, &mut grid);
-        scratch.grid = grid;
-        value
-    }
-}
-
-impl Zvidpt {
-    /// The walk from the camera vertex `si` with weight `W0` (paper §4.2–§4.3).
-    #[allow(clippy::too_many_arguments)]
-    #[inline]
-    fn walk<A: Accel>(
-        &self,
-        ctx: &RenderContext<A>,
-        guide: &Guide,
-        mut si: SurfaceInteraction,
-        mut weight: Vec3A,
-        rng: &mut SampleStream,
-        scratch: &mut Scratch,
-        grid: &mut Vec<f32>,
-    ) -> Vec3A {
-        let mut result = weight * si.emitted();
-        loop {
-            let albedo = si.material.albedo();
-            // A surface that reflects nothing ends the walk: both branches below add zero.
-            if albedo == Vec3A::ZERO {
-                return result;
-            }
-            let frame = si.bsdf_frame();
-            let grid_frame = si.gather_frame(&frame);
-            let g = guide.at(&si, &grid_frame, grid);
-            let wi = frame.to_local(si.wo);
-            // A pure delta surface has no `L̂1` (NEE cannot reach through it; the emission its
-            // lobe finds is counted at the next vertex): the walk continues by albedo.
-            let delta = si.material.bsdf.is_delta();
-            let q = if delta {
-                1.0 - survival_probability(albedo)
-            } else {
-                termination_probability(albedo, &g.density, self.q_min, self.q_max, self.q_kappa)
-            };
-            let direct = |rng: &mut SampleStream, scratch: &mut Scratch| {
-                if delta { Vec3A::ZERO } else { direct_light(ctx, &si, &frame, wi, MisAt::NONE, rng, scratch) }
-            };
-            match self.estimator {
-                Estimator::Terminal => {
-                    if rng.next_f32() < q {
-                        return result + weight * direct(rng, scratch) / q;
-                    }
-                }
-                Estimator::Collision => {
-                    result += weight * direct(rng, scratch);
-                    if rng.next_f32() < q {
-                        return result;
-                    }
-                }
-            }
-            let Some(s) = guide.scatter(&g, &si, &grid_frame, &frame, wi, rng) else {
-                return result;
-            };
-            weight *= s.weight / (1.0 - q);
-            let ray = si.spawn_ray(s.dir);
-            scratch.rays += 1;
-            let Some(hit) = ctx.accel.intersect(&ray) else {
-                // The environment behind a delta lobe (NEE counts it elsewhere).
-                return if s.delta { result + weight * ctx.scene.environment(s.dir) } else { result };
-            };
-            si = ctx.scene.interaction(&ray, &hit);
-            if s.delta {
-                result += weight * si.emitted();
-            }
+        if let Some(path) = &self.path {
+            return path.sample(ctx, pixel, &(), rng, scratch);
         }
+        let guide = self.guide.as_ref().expect("prepare() builds the guide");
+        self.camera_sample(ctx, guide, pixel, *reference, rng, scratch, None)
     }
-}
-
-/// A uniform point (`u ∈ [0,1)²`) inside subpixel `j` of a pixel, in pixel units.
-#[inline]
-fn subpixel_point(shape: GridShape, j: usize, u: Vec2) -> Vec2 {
-    let (row, col) = (j as u32 / shape.cols, j as u32 % shape.cols);
-    Vec2::new((col as f32 + u.x) / shape.cols as f32, (row as f32 + u.y) / shape.rows as f32)
 }

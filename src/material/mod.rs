@@ -1,4 +1,4 @@
-//! Scattering models beyond the Lambertian wall (issue #11), in the local shading frame (+z
+//! Scattering models beyond the Lambertian wall, in the local shading frame (+z
 //! the shading normal, `wi` toward the viewer, `wo` the scattered direction, both unit): an
 //! enum with static dispatch, each model with `eval` (the BSDF value `f`, no cosine), `pdf`
 //! (solid angle, of [`Bsdf::sample`]'s non-delta directions) and `sample` (a direction and its

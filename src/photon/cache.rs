@@ -7,7 +7,7 @@
 //!
 //! The table first held kd-tree (kiddo) `nearest_one` lookups: they took 56% of a
 //! zvidpt-terminal render's time on `cornell-paper`; the voxel read is a few nanoseconds.
-use super::guide::{GridShape, MAX_GUIDE_CELLS, weights_to_cdf};
+use super::grid::{GridShape, MAX_GUIDE_CELLS, weights_to_cdf};
 use super::{FluxDensity, GuidePhotons, PhotonMap};
 use crate::geometry::{Frame, Vec3A};
 use rayon::prelude::*;

@@ -2,10 +2,10 @@
 //! diffuse hit, in a kd-tree (kiddo) over positions with the payload kept apart
 //! (structure of arrays), and the radiance estimates and guide grids built from them.
 pub(crate) mod cache;
-pub mod guide;
+pub mod grid;
 
 pub use cache::{GuideCache, GuideRecord};
-pub use guide::{GridShape, MAX_GUIDE_CELLS};
+pub use grid::{GridShape, MAX_GUIDE_CELLS};
 
 use crate::accel::Accel;
 use crate::geometry::{Frame, Vec3A, luminance, warp};

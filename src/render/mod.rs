@@ -4,6 +4,7 @@
 pub mod aov;
 pub mod checkpoint;
 pub mod interrupt;
+mod scene;
 
 use crate::accel::Accel;
 use crate::film::{Image, Partial, PixelSums, finish_pixel, to_fixed};
@@ -14,6 +15,7 @@ use crate::scene::{LightSampling, Scene};
 use crate::{Error, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
+pub use scene::{render_scene, render_scene_with_aovs};
 use std::io::IsTerminal;
 use std::time::Instant;
 

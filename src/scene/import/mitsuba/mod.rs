@@ -508,7 +508,7 @@ struct Translator<'r, 'o> {
 }
 
 /// A BSDF as a material, before a shape's emitter is added.
-struct Bsdf {
+struct MitsubaBsdf {
     material: MaterialDescription,
 }
 
@@ -841,7 +841,7 @@ impl Translator<'_, '_> {
     }
 
     /// A BSDF object (or a reference to one) as a material.
-    fn bsdf(&mut self, b: &Obj, depth: usize) -> Result<Bsdf> {
+    fn bsdf(&mut self, b: &Obj, depth: usize) -> Result<MitsubaBsdf> {
         let mut m = MaterialDescription { two_sided: Some(false), ..MaterialDescription::default() };
         let rough = b.plugin.starts_with("rough");
         match b.plugin.as_str() {
@@ -1067,10 +1067,10 @@ impl Translator<'_, '_> {
                 m.diffuse = [0.5; 3];
             }
         }
-        Ok(Bsdf { material: m })
+        Ok(MitsubaBsdf { material: m })
     }
 
-    fn child_bsdf(&mut self, c: &Child, depth: usize) -> Result<Bsdf> {
+    fn child_bsdf(&mut self, c: &Child, depth: usize) -> Result<MitsubaBsdf> {
         match c {
             Child::Obj(o) if o.tag == "bsdf" => self.bsdf(o, depth),
             Child::Obj(o) => Err(syntax(&o.at, format!("<{}> where a BSDF was expected", o.tag))),

@@ -1,11 +1,12 @@
 //! What the photon-guided integrators share: the photon map and guide cache built in the
 //! pre-pass, the per-vertex query (`L̃r`, `L̃1` and the `GL` grid from one lookup), sampling a
 //! direction from the grid, and ZVIDPT's termination probability.
-use super::{Scatter, sample_bsdf};
+use super::Scatter;
+use super::mixture::sample_mixture;
 use crate::Result;
 use crate::accel::Accel;
 use crate::geometry::{Frame, Vec3A, luminance};
-use crate::photon::guide::{grid_pdf, sample_cdf, weights_to_cdf};
+use crate::photon::grid::{grid_pdf, sample_cdf, weights_to_cdf};
 use crate::photon::{FluxDensity, GridShape, GuideCache, GuidePhotons, MAX_GUIDE_CELLS, PhotonMap};
 use crate::sampler::SampleStream;
 use crate::scene::{Scene, SurfaceInteraction};
@@ -81,7 +82,7 @@ impl std::fmt::Display for PrepassReport {
     }
 }
 
-pub struct Guide {
+pub struct PhotonGuide {
     pub settings: GuideSettings,
     pub map: PhotonMap,
     cache: Option<GuideCache>,
@@ -96,8 +97,8 @@ pub struct VertexGuide<'a> {
     pub cdf: &'a [f32],
 }
 
-impl Guide {
-    pub fn build<A: Accel>(scene: &Scene, accel: &A, settings: &GuideSettings, seed: u64) -> Result<Guide> {
+impl PhotonGuide {
+    pub fn build<A: Accel>(scene: &Scene, accel: &A, settings: &GuideSettings, seed: u64) -> Result<PhotonGuide> {
         let t = Instant::now();
         let map = PhotonMap::build(scene, accel, settings.photons, seed)?;
         let photon_seconds = t.elapsed().as_secs_f64();
@@ -115,7 +116,7 @@ impl Guide {
         let mut uniform_cdf = vec![0.0; settings.grid.cells()];
         weights_to_cdf(&mut uniform_cdf, 0.0);
         debug_assert!(settings.grid.cells() <= MAX_GUIDE_CELLS);
-        Ok(Guide { settings: settings.clone(), map, cache, uniform_cdf, report })
+        Ok(PhotonGuide { settings: settings.clone(), map, cache, uniform_cdf, report })
     }
 
     /// The estimates and grid at `si`: from a nearby cache record, or from a k-nearest query
@@ -142,7 +143,7 @@ impl Guide {
         VertexGuide { density, cdf: w }
     }
 
-    /// Flux density only (for the pixel grid), same source as [`Guide::at`].
+    /// Flux density only (for the pixel grid), same source as [`PhotonGuide::at`].
     #[inline]
     pub fn density_at(&self, si: &SurfaceInteraction) -> FluxDensity {
         match &self.cache {
@@ -197,75 +198,6 @@ impl Guide {
             |w| grid_pdf(shape, g.cdf, w),
         )
     }
-}
-
-/// Share of directions a guided integrator takes from the BSDF's own sampling on a surface
-/// that is not Lambertian (the photon grid and the learned density stand for incident light
-/// times a Lambertian lobe; the BSDF's sampling follows a glossy lobe).
-pub const BSDF_SHARE: f32 = 0.5;
-
-/// Roughness below which a glossy lobe is too narrow for a learned density to sample it: a
-/// direction the guide picks almost never falls in a lobe of this width.
-pub const GUIDE_MIN_ALPHA: f32 = 0.1;
-
-/// Whether the learned integrator mixes its guide into the sampling of `bsdf`: not where
-/// every lobe is delta or near-specular (a glossy lobe narrower than [`GUIDE_MIN_ALPHA`]);
-/// a plastic's diffuse base is always worth guiding.
-#[inline]
-#[must_use]
-pub fn guides_at(bsdf: &crate::material::Bsdf) -> bool {
-    use crate::material::Bsdf;
-    let rough = |r: &Option<crate::material::microfacet::Microfacet>| r.is_some_and(|m| m.alpha >= GUIDE_MIN_ALPHA);
-    match bsdf {
-        Bsdf::Diffuse { .. } | Bsdf::Plastic { .. } => true,
-        Bsdf::Conductor { roughness, .. } => rough(roughness),
-        Bsdf::Dielectric { roughness, thin, .. } => !thin && rough(roughness),
-    }
-}
-
-/// A direction at a vertex that is not Lambertian: the BSDF's own sampling on a pure delta
-/// surface; elsewhere a one-sample mixture, the BSDF's sampling with probability
-/// [`BSDF_SHARE`] and `guide` (a sampler and its density, both in local directions of
-/// `guide_frame`) otherwise, weighted by the mixture's density. A delta lobe the BSDF picks
-/// keeps its own weight over its share.
-#[inline]
-pub fn sample_mixture(
-    si: &SurfaceInteraction,
-    frame: &Frame,
-    wi: Vec3A,
-    guide_frame: &Frame,
-    rng: &mut SampleStream,
-    mut guide_sample: impl FnMut(&mut SampleStream) -> Vec3A,
-    guide_pdf: impl Fn(Vec3A) -> f32,
-) -> Option<Scatter> {
-    let bsdf = &si.material.bsdf;
-    if bsdf.is_delta() {
-        return sample_bsdf(si, frame, wi, rng);
-    }
-    let u = rng.next_f32();
-    let (dir, local, pdf_bsdf) = if u < BSDF_SHARE {
-        let s = bsdf.sample(wi, u / BSDF_SHARE, rng.next_2d())?;
-        if s.delta {
-            let dir = frame.to_world(s.wo);
-            return si.consistent(dir, s.wo.z).then_some(Scatter {
-                dir,
-                weight: s.weight / BSDF_SHARE,
-                pdf: 1.0,
-                delta: true,
-            });
-        }
-        (frame.to_world(s.wo), s.wo, s.pdf)
-    } else {
-        let dir = guide_frame.to_world(guide_sample(rng));
-        let local = frame.to_local(dir);
-        (dir, local, bsdf.pdf(wi, local))
-    };
-    if !si.consistent(dir, local.z) {
-        return None;
-    }
-    let pdf = BSDF_SHARE * pdf_bsdf + (1.0 - BSDF_SHARE) * guide_pdf(guide_frame.to_local(dir));
-    let weight = bsdf.eval(wi, local) * (local.z.abs() / pdf);
-    (pdf > 0.0 && weight.is_finite()).then_some(Scatter { dir, weight, pdf, delta: false })
 }
 
 /// `L̃ = ρ/π ⊙ density` (Lambertian).
