@@ -50,7 +50,7 @@ pub fn obj(data: &[u8]) {
 
 /// PLY meshes (ASCII or binary), parsed and triangulated.
 pub fn ply(data: &[u8]) {
-    let _ = crate::scene::ply_triangles(data);
+    let _ = crate::scene::mesh::ply_triangles(data);
 }
 
 /// Texture and environment images in the formats decoded from memory (PFM, Radiance HDR,

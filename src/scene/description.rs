@@ -372,7 +372,7 @@ pub struct MeshDescription {
     pub flip_v: bool,
 }
 
-/// The canonical shapes (see [`crate::scene::shapes`]).
+/// The canonical shapes (see [`crate::scene::mesh::shapes`]).
 #[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
 pub enum ShapeKind {

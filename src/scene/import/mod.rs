@@ -127,7 +127,7 @@ pub(crate) struct Mark {
 
 /// Most triangles written out inline that instancing may copy, in all (pbrt's instanced
 /// `trianglemesh`es; meshes from files are counted by the loader).
-pub(crate) const MAX_INSTANCED_TRIANGLES: usize = crate::scene::load::MAX_TRIANGLES;
+pub(crate) const MAX_INSTANCED_TRIANGLES: usize = crate::scene::limits::MAX_TRIANGLES;
 
 impl Prototype {
     pub(crate) fn mark(out: &SceneDescription) -> Mark {

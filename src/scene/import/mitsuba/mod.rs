@@ -986,7 +986,7 @@ impl Translator<'_, '_> {
                     m.k = Some(self.constant_colour(b, "k", [1.0; 3])?);
                 } else {
                     let name = self.text(b, "material")?.unwrap_or_else(|| "none".into());
-                    if crate::material::conductors::lookup(&name).is_none() {
+                    if crate::material::metals::lookup(&name).is_none() {
                         self.unsupported(
                             &b.at,
                             format!(

@@ -261,7 +261,7 @@ struct Parser<'o> {
     /// Curves tessellated so far, one mesh per material (a hair file holds thousands of
     /// one-curve directives), with where the first was written; and whether flat curves
     /// were warned about.
-    curves: Vec<(String, crate::scene::curves::CurveMesh, String)>,
+    curves: Vec<(String, crate::scene::mesh::curves::CurveMesh, String)>,
     warned_flat_curves: bool,
 }
 
@@ -302,7 +302,7 @@ pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result
 }
 
 /// Tessellated curves as an inline mesh of `material`.
-fn curve_mesh(mesh: crate::scene::curves::CurveMesh, material: String, origin: String) -> InlineMesh {
+fn curve_mesh(mesh: crate::scene::mesh::curves::CurveMesh, material: String, origin: String) -> InlineMesh {
     InlineMesh {
         origin,
         positions: mesh.positions,
@@ -1082,7 +1082,7 @@ impl Parser<'_> {
                         let metal = e.strip_prefix("metal-").and_then(|s| s.strip_suffix("-eta"));
                         let metal_k = k.strip_prefix("metal-").and_then(|s| s.strip_suffix("-k"));
                         match (metal, metal_k) {
-                            (Some(a), Some(b)) if a == b && crate::material::conductors::lookup(a).is_some() => {
+                            (Some(a), Some(b)) if a == b && crate::material::metals::lookup(a).is_some() => {
                                 m.metal = Some(a.to_string());
                             }
                             _ => {
@@ -1174,7 +1174,7 @@ impl Parser<'_> {
                 };
                 let metal = named("conductor.eta")
                     .and_then(|e| e.strip_prefix("metal-").and_then(|s| s.strip_suffix("-eta")).map(str::to_string))
-                    .filter(|a| crate::material::conductors::lookup(a).is_some());
+                    .filter(|a| crate::material::metals::lookup(a).is_some());
                 m.metal = Some(metal.unwrap_or_else(|| "Cu".into()));
                 let r = params.float("conductor.roughness", 0.0, at)?;
                 let remap = params.boolean("remaproughness", true, at)?;
@@ -1414,10 +1414,10 @@ impl Parser<'_> {
         Ok(name)
     }
 
-    /// A `curve` (hair, fur): tessellated into triangles (see [`crate::scene::curves`]), in
+    /// A `curve` (hair, fur): tessellated into triangles (see [`crate::scene::mesh::curves`]), in
     /// world space, its width scaled as the transform scales volumes.
     fn curve(&mut self, params: &Params, at: &At) -> Result<()> {
-        use crate::scene::curves::{Basis, Curve, CurveMesh, Sweep};
+        use crate::scene::mesh::curves::{Basis, Curve, CurveMesh, Sweep};
         let p = params.numbers("P", at)?.ok_or_else(|| syntax(at, "a curve needs \"point3 P\""))?.to_vec();
         if p.len() % 3 != 0 {
             return Err(syntax(at, "\"P\" must hold whole points"));
@@ -1460,7 +1460,7 @@ impl Parser<'_> {
         let degree = usize::try_from(degree).unwrap_or(0);
         let curve = Curve { points: &points, basis, degree, sweep, width, normals: normals.as_deref() };
         let material = self.shape_material()?;
-        let max = crate::scene::load::MAX_TRIANGLES;
+        let max = crate::scene::limits::MAX_TRIANGLES;
         if self.defining.is_some() {
             // In an object: a mesh of its own, captured with the object's other shapes.
             let mut mesh = CurveMesh::default();

@@ -298,7 +298,7 @@ mod tests {
             b"ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\nend_header\n\x00\x00",
             b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n3 0 0\n",
             // The fuzzer's out-of-memory input: 68 M vertices without properties.
-            include_bytes!("../../fuzz/artifacts/ply/oom-9a6827968804c1f93ff78e1f1cab3c10c1af3b9c"),
+            include_bytes!("../../../fuzz/artifacts/ply/oom-9a6827968804c1f93ff78e1f1cab3c10c1af3b9c"),
             b"ply\nformat ascii 1.0\nelement vertex 1000\nproperty float x\nproperty float y\nproperty float z\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n",
         ];
         for (k, bytes) in cases.iter().enumerate() {
