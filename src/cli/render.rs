@@ -35,8 +35,9 @@ pub struct RenderArgs {
     /// Time budget in seconds: render whole passes until it is used up.
     #[arg(long, allow_negative_numbers = true)]
     pub time: Option<f64>,
-    /// Light-transport algorithm (`zvidpt` by default: it beats the path tracer at equal time
-    /// on every shipped scene; README, "Results").
+    /// Light-transport algorithm (`zvidpt` by default: far ahead of the path tracer on
+    /// indirectly lit scenes, and it falls back to path tracing where its probe finds it
+    /// losing; README, "Results").
     #[arg(long, value_enum, default_value_t = IntegratorKind::Zvidpt)]
     pub integrator: IntegratorKind,
     #[command(flatten)]
