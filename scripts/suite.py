@@ -12,9 +12,10 @@ scene.pbrt inside, or pbrt/scene-v4.pbrt as in Bitterli's collection). For each 
 2. every integrator (a `zvidpt render` flag string; `;` between them) for --time seconds per
    seed, its MSE against the reference (`zvidpt diff`).
 
-Writes OUT/suite.csv (a row per scene, integrator and seed: seconds, spp, MSE, relMSE),
-OUT/suite.md (per scene the mean MSE of each integrator and its ratio to the first one's, and
-the geometric mean of those ratios over the scenes), and OUT/suite.png (MSE per scene and
+Writes OUT/suite.csv (a row per scene, integrator and seed: seconds, spp, MSE, relMSE, and both
+without the worst 0.1% of pixels), OUT/suite.md (per scene the mean MSE of each integrator, its
+ratio to the first one's, the same ratio of the trimmed MSE, and the geometric means of the
+ratios over the scenes), and OUT/suite.png (MSE per scene and
 integrator, log scale) when matplotlib is installed. Equal time means equal wall-clock
 seconds of rendering on the same machine and threads, training and pre-passes included.
 """
@@ -121,37 +122,48 @@ def main():
                     m = re.search(r"(\d+) spp.*?, ([\d.]+) s\b", line.splitlines()[-1])
                     d = run([a.zvidpt, "diff", img, ref])
                     mse, rel = re.search(r"MSE (\S+)\s+relMSE (\S+)", d).groups()
+                    tmse, trel = re.search(r"pixels: MSE (\S+)\s+relMSE ([^\s)]+)", d).groups()
                     rows.append(dict(scene=name, integrator=integ, seed=seed, seconds=m.group(2), spp=m.group(1),
-                                     mse=float(mse), relmse=float(rel)))
+                                     mse=float(mse), relmse=float(rel), mse_trimmed=float(tmse),
+                                     relmse_trimmed=float(trel)))
                     print(f"{name} | {integ} | seed {seed}: MSE {float(mse):.4g} ({m.group(1)} spp)", flush=True)
                 except RuntimeError as e:
                     print(f"{name} | {integ} | seed {seed}: failed: {e}", file=sys.stderr)
     with open(out / "suite.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=["scene", "integrator", "seed", "seconds", "spp", "mse", "relmse"])
+        w = csv.DictWriter(fh, fieldnames=["scene", "integrator", "seed", "seconds", "spp", "mse", "relmse",
+                                           "mse_trimmed", "relmse_trimmed"])
         w.writeheader()
         w.writerows(rows)
-    mean = {}
-    for r in rows:
-        mean.setdefault((r["scene"], r["integrator"]), []).append(r["mse"])
-    mean = {k: sum(v) / len(v) for k, v in mean.items()}
+    def means(key):
+        m = {}
+        for r in rows:
+            m.setdefault((r["scene"], r["integrator"]), []).append(r[key])
+        return {k: sum(v) / len(v) for k, v in m.items()}
+
+    mean, trimmed = means("mse"), means("mse_trimmed")
     base = integrators[0]
-    lines = [f"Equal time {a.time:g} s per render, {a.resolution}, seeds {a.seeds}; MSE against `path` at "
-             f"{a.ref_spp} spp; ratio = {base}'s MSE / the integrator's (above 1: better than {base}).", "",
+    others = integrators[1:]
+    lines = [f"Equal time {a.time:g} s per render, {a.resolution if not a.downscale else f'film / {a.downscale}'}, "
+             f"seeds {a.seeds}; MSE against `path` at {a.ref_spp} spp, mean over the seeds; ratio = {base}'s MSE / "
+             f"the integrator's (above 1: better than {base}); trimmed: the same without each image's worst 0.1% "
+             f"of pixels (a few fireflies can hold most of an image's squared error).", "",
              "| scene | " + " | ".join(f"{i} MSE" for i in integrators) + " | " +
-             " | ".join(f"{base} / {i}" for i in integrators[1:]) + " |",
-             "|---|" + "---|" * (2 * len(integrators) - 1)]
-    logs = {i: [] for i in integrators[1:]}
+             " | ".join(f"{base} / {i}" for i in others) + " | " +
+             " | ".join(f"{base} / {i} trimmed" for i in others) + " |",
+             "|---|" + "---|" * (len(integrators) + 2 * len(others))]
+    logs = {(i, k): [] for k in ("mse", "trimmed") for i in others}
+
+    def ratio(table, s, i, k):
+        if (s, i) in table and (s, base) in table and table[(s, i)] > 0:
+            r = table[(s, base)] / table[(s, i)]
+            logs[(i, k)].append(math.log(r))
+            return f"{r:.2f}"
+        return "-"
+
     for s in scenes:
         cells = [f"{mean[(s, i)]:.4g}" if (s, i) in mean else "-" for i in integrators]
-        ratios = []
-        for i in integrators[1:]:
-            if (s, i) in mean and (s, base) in mean and mean[(s, i)] > 0:
-                r = mean[(s, base)] / mean[(s, i)]
-                logs[i].append(math.log(r))
-                ratios.append(f"{r:.2f}")
-            else:
-                ratios.append("-")
-        lines.append(f"| {s} | " + " | ".join(cells + ratios) + " |")
+        cells += [ratio(mean, s, i, "mse") for i in others] + [ratio(trimmed, s, i, "trimmed") for i in others]
+        lines.append(f"| {s} | " + " | ".join(cells) + " |")
     geo = [f"{math.exp(sum(v) / len(v)):.2f}" if v else "-" for v in logs.values()]
     lines.append("| geometric mean | " + " | ".join([""] * len(integrators) + geo) + " |")
     (out / "suite.md").write_text("\n".join(lines) + "\n")

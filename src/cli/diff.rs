@@ -26,7 +26,15 @@ pub(super) fn run_diff(args: &DiffArgs) -> Result<()> {
     if let Some(p) = &args.error_map {
         film::error_map_png(p, &image, &reference)?;
     }
-    out!("MSE {:.6e}  relMSE {:.6e}", m.mse, m.rel_mse);
+    let t = film::trimmed(&image, &reference)?;
+    out!(
+        "MSE {:.6e}  relMSE {:.6e}  (without the worst {}% of pixels: MSE {:.6e}  relMSE {:.6e})",
+        m.mse,
+        m.rel_mse,
+        100.0 * film::TRIM_FRACTION,
+        t.mse,
+        t.rel_mse
+    );
     for (what, img, path) in [("image", &image, &args.image), ("reference", &reference, &args.reference)] {
         let bad = non_finite_values(img);
         if bad > 0 {

@@ -12,6 +12,36 @@ pub struct Metrics {
     pub rel_mse: f64,
 }
 
+/// Share of pixels [`trimmed`] leaves out: the worst one in a thousand.
+pub const TRIM_FRACTION: f64 = 0.001;
+
+/// MSE and relMSE without the [`TRIM_FRACTION`] of pixels with the largest error (each metric
+/// leaves out its own worst pixels; none on images under 1,000 pixels). A single firefly of
+/// a heavy-tailed estimator (a caustic, a sub-pixel light) can hold most of an image's squared
+/// error, so that two seeds' MSE differ 60×; these figures say how the rest of the image
+/// converges. They are not unbiased measures of the expected error: report them beside the
+/// plain metrics, never instead of them.
+pub fn trimmed(image: &Image, reference: &Image) -> Result<Metrics> {
+    same_size(image, reference)?;
+    let (mut se, mut rel): (Vec<f64>, Vec<f64>) = image
+        .pixels
+        .iter()
+        .zip(&reference.pixels)
+        .map(|(a, b)| {
+            (0..3).fold((0.0, 0.0), |(se, rel), c| {
+                let d = (f64::from(a[c]) - f64::from(b[c])).powi(2);
+                (se + d, rel + d / (f64::from(b[c]).powi(2) + 0.01))
+            })
+        })
+        .unzip();
+    let keep = se.len() - (se.len() as f64 * TRIM_FRACTION) as usize;
+    let mean_of_best = |v: &mut Vec<f64>| {
+        v.sort_unstable_by(f64::total_cmp);
+        v[..keep].iter().sum::<f64>() / (3 * keep).max(1) as f64
+    };
+    Ok(Metrics { mse: mean_of_best(&mut se), rel_mse: mean_of_best(&mut rel) })
+}
+
 fn same_size(a: &Image, b: &Image) -> Result<()> {
     if (a.width, a.height) != (b.width, b.height) {
         return Err(Error::InvalidOption(format!(
@@ -87,5 +117,25 @@ mod tests {
         assert_eq!(metrics(&a, &a).unwrap().mse, 0.0);
         let c = Image { width: 1, height: 2, ..a.clone() };
         assert!(metrics(&a, &c).is_err());
+        // Under 1,000 pixels nothing is left out.
+        assert_eq!(trimmed(&a, &b).unwrap(), m);
+    }
+
+    #[test]
+    fn trimmed_leaves_out_the_worst_pixels() {
+        let zero = Image { width: 100, height: 20, pixels: vec![[0.0; 3]; 2000], variance: None, spp: 1 };
+        let mut a = zero.clone();
+        a.pixels.iter_mut().for_each(|p| *p = [0.1; 3]);
+        // Two fireflies in 2,000 pixels: the plain MSE is theirs, the trimmed one the rest's.
+        a.pixels[7] = [100.0; 3];
+        a.pixels[1500] = [50.0; 3];
+        let m = metrics(&a, &zero).unwrap();
+        let t = trimmed(&a, &zero).unwrap();
+        assert!((m.mse - (1998.0 * 0.01 + 10000.0 + 2500.0) / 2000.0).abs() < 1e-9, "{m:?}");
+        assert!((t.mse - 0.01).abs() < 1e-8, "{t:?}");
+        assert!((t.rel_mse - 1.0).abs() < 1e-6, "{t:?}");
+        // A third firefly stays in.
+        a.pixels[3] = [10.0; 3];
+        assert!((trimmed(&a, &zero).unwrap().mse - (1997.0 * 0.01 + 100.0) / 1998.0).abs() < 1e-6);
     }
 }

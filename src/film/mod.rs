@@ -13,7 +13,7 @@ pub use atomic::{
     write_atomically,
 };
 pub use exr_io::{read_exr, read_exr_from, stage_exr, stage_exr_with, write_exr};
-pub use metrics::{Metrics, error_map_png, metrics, metrics_of_rows};
+pub use metrics::{Metrics, TRIM_FRACTION, error_map_png, metrics, metrics_of_rows, trimmed};
 pub use partial::{PartialHeader, parse_partial, read_partial, read_partial_header, stage_partial, stage_sums};
 pub use passes::{PriorSamples, mean_and_variance, mean_variance};
 pub use png_out::write_rgb8 as write_rgb8_png;
@@ -23,7 +23,7 @@ pub(crate) use sums::{finish_pixel, to_fixed};
 
 /// Most pixels an image may have, rendered or read: 2^26 (e.g. 8192 × 8192). A render peaks
 /// at about 114 bytes per pixel (`path`) and 256 (`zvidpt`, training passes combined; 128-bit
-/// exact sums), measured between 1024×768 and 2048×1536 (README, "errors and limits"): 7.7
+/// exact sums), measured between 1024×768 and 2048×1536 (docs/cli.md, "Errors and limits"): 7.7
 /// and 17 GB at the limit, within this machine's 24 GiB.
 pub const MAX_PIXELS: u64 = 1 << 26;
 
