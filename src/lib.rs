@@ -1,7 +1,7 @@
 //! zvidpt — Zero Variance Importance Sampling Driven Potential Tracing.
 //!
 //! A CPU renderer whose ray-tracing backend is chosen at run time and whose integrators are
-//! generic over that backend. See `README.md` for the command line and the scene format.
+//! generic over that backend. See `docs/cli.md` for the command line and `docs/scene-format.md` for the scene format.
 // The only unsafe code lives in `accel::embree` (feature `embree`); everywhere else it is
 // forbidden. `forbid` cannot be relaxed by a child module, hence `deny` when Embree is built.
 #![cfg_attr(not(feature = "embree"), forbid(unsafe_code))]

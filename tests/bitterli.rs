@@ -1,6 +1,6 @@
 //! A scene of Benedikt Bitterli's public collection (pbrt-v4 version, CC0) renders as Tungsten,
 //! the collection's own renderer, rendered it. The rest of the collection is compared by
-//! `scripts/bitterli.py fidelity` (README, "Public scenes").
+//! `scripts/bitterli.py fidelity` (docs/import.md, "Public scenes").
 mod common;
 use std::path::{Path, PathBuf};
 use zvidpt::film::{Image, read_exr};

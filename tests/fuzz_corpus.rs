@@ -1,7 +1,7 @@
 //! Replays every fuzz corpus and crash reproducer (`fuzz/corpus/TARGET`, `fuzz/artifacts/
 //! TARGET`) through the same entry points the fuzz targets call: none may panic. Fuzzing
 //! itself (coverage-guided, libFuzzer via cargo-fuzz on stable with `-s none`) is described
-//! in the README.
+//! in docs/cli.md ("Errors and limits", fuzzing).
 use std::path::Path;
 
 fn replay(target: &str, run: fn(&[u8])) -> usize {

@@ -1,4 +1,4 @@
-//! The library's modules form layers (README, "Layout"): a module may use modules of lower
+//! The library's modules form layers (docs/architecture.md): a module may use modules of lower
 //! layers only, so there are no import cycles and each layer can be read, tested and replaced
 //! without the ones above it. This test reads every `crate::` path in `src/` (outside comments
 //! and unit tests) and fails when one points sideways or up.

@@ -68,7 +68,7 @@ fn defines_reach_the_scene() {
 /// and channel (144 tests), |z| below 4.5 (a false alarm in fewer than 1 run in 1000 under
 /// the null: 144 · 6.8e-6). A wrong camera convention (fov axis, mirror, pixel centres), a
 /// flipped texture, a mis-read material parameter or IOR moves whole blocks far beyond it
-/// (README, "Mitsuba 3 scenes", lists what we saw).
+/// (docs/import.md, "Mitsuba 3 scenes", lists what we saw).
 #[test]
 fn renders_as_mitsuba_renders_it() {
     let scene = Scene::load(dir().join("box.xml")).unwrap();

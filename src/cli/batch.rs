@@ -5,7 +5,7 @@ use crate::batch::{self, BatchOptions, Job, Outcome, Report, Runner, Status, slu
 
 #[derive(Debug, Args)]
 pub struct BatchArgs {
-    /// The job file (TOML: [defaults], [[job]] tables, [[matrix]] tables; README, "Batches").
+    /// The job file (TOML: [defaults], [[job]] tables, [[matrix]] tables; docs/batch.md).
     pub jobs: PathBuf,
     /// Jobs rendered at once, each with its share of the threads.
     #[arg(long, default_value_t = 1)]

@@ -184,7 +184,7 @@ pub struct PhotonArgs {
     pub guide: GuidePhotons,
     /// ε_L: every guide-grid cell is floored at this fraction of the mean cell, i.e. the grid
     /// is mixed with cosine sampling in proportion ε_L : 1 and direction weights stay below
-    /// (1 + 1/ε_L)·ρ. ALGORITHM.md §2 suggests 0.1; 1 measured best (see README).
+    /// (1 + 1/ε_L)·ρ. ALGORITHM.md §2 suggests 0.1; 1 measured best (docs/integrators.md).
     #[arg(long, default_value_t = 1.0)]
     pub guide_floor: f32,
     /// ZVIDPT's largest termination probability q (ALGORITHM.md §2: 0.95); must be below 1,

@@ -37,7 +37,7 @@ pub struct RenderArgs {
     pub time: Option<f64>,
     /// Light-transport algorithm (`zvidpt` by default: far ahead of the path tracer on
     /// indirectly lit scenes, and it falls back to path tracing where its probe finds it
-    /// losing; README, "Results").
+    /// losing; docs/results.md).
     #[arg(long, value_enum, default_value_t = IntegratorKind::Zvidpt)]
     pub integrator: IntegratorKind,
     #[command(flatten)]
