@@ -147,9 +147,8 @@ def main():
              f"seeds {a.seeds}; MSE against `path` at {a.ref_spp} spp, mean over the seeds; ratio = {base}'s MSE / "
              f"the integrator's (above 1: better than {base}); trimmed: the same without each image's worst 0.1% "
              f"of pixels (a few fireflies can hold most of an image's squared error).", "",
-             "| scene | " + " | ".join(f"{i} MSE" for i in integrators) + " | " +
-             " | ".join(f"{base} / {i}" for i in others) + " | " +
-             " | ".join(f"{base} / {i} trimmed" for i in others) + " |",
+             "| " + " | ".join(["scene"] + [f"{i} MSE" for i in integrators] + [f"{base} / {i}" for i in others]
+                               + [f"{base} / {i} trimmed" for i in others]) + " |",
              "|---|" + "---|" * (len(integrators) + 2 * len(others))]
     logs = {(i, k): [] for k in ("mse", "trimmed") for i in others}
 
@@ -165,7 +164,8 @@ def main():
         cells += [ratio(mean, s, i, "mse") for i in others] + [ratio(trimmed, s, i, "trimmed") for i in others]
         lines.append(f"| {s} | " + " | ".join(cells) + " |")
     geo = [f"{math.exp(sum(v) / len(v)):.2f}" if v else "-" for v in logs.values()]
-    lines.append("| geometric mean | " + " | ".join([""] * len(integrators) + geo) + " |")
+    if others:
+        lines.append("| " + " | ".join(["geometric mean"] + [""] * len(integrators) + geo) + " |")
     (out / "suite.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     try:

@@ -17,8 +17,10 @@ use zvidpt::render::{RenderSettings, render};
 use zvidpt::scene::Scene;
 use zvidpt::stats::family_z_bound;
 
-/// The learned integrators under test: the default (`window`), the paper's `q`, and PPG-style
-/// guided path tracing (`albedo`, i.e. `jensen --learned-guide on`). The walk itself is
+/// The learned integrators under test: the default (`window`), the paper's `q`, the default
+/// with a defensive mixture (tree and source-box shares lowered: the weights must use the
+/// lowered density), and PPG-style guided path tracing (`albedo`, i.e. `jensen
+/// --learned-guide on`). The walk itself is
 /// tested: never replaced by the path tracer (`--fallback off`; the fallback has its own
 /// test).
 fn variants(base: &LearnedSettings) -> Vec<(&'static str, LearnedSettings)> {
@@ -26,6 +28,7 @@ fn variants(base: &LearnedSettings) -> Vec<(&'static str, LearnedSettings)> {
     vec![
         ("zvidpt", base.clone()),
         ("zvidpt --roulette q", LearnedSettings { roulette: Roulette::Q, ..base.clone() }),
+        ("zvidpt --defensive 0.5", LearnedSettings { defensive: 0.5, ..base.clone() }),
         (
             "jensen --learned-guide",
             LearnedSettings { roulette: Roulette::Albedo, control_variate: false, ..base.clone() },

@@ -244,6 +244,14 @@ pub struct PhotonArgs {
     /// per sample is higher (on), or always keep the learned walk (off).
     #[arg(long, value_enum, default_value_t = Switch::On)]
     pub fallback: Switch,
+    /// zvidpt: lowest survival probability of the weight window (bounds the weight a
+    /// surviving walk gains where the learned radiance is too low).
+    #[arg(long, default_value_t = 0.2)]
+    pub min_survival: f32,
+    /// zvidpt and jensen --learned-guide on: least share of cosine sampling at a diffuse
+    /// vertex, whatever its guide cell learned (a defensive mixture; 0: as learned).
+    #[arg(long, default_value_t = 0.0)]
+    pub defensive: f32,
     /// jensen: guide with the learned importance function (PPG-style guided path tracing)
     /// instead of the photon grid.
     #[arg(long, value_enum, default_value_t = Switch::Off)]
@@ -277,6 +285,8 @@ impl PhotonArgs {
             max_split: 8,
             roulette_cv: Switch::On,
             fallback: Switch::On,
+            min_survival: 0.2,
+            defensive: 0.0,
             learned_guide: Switch::Off,
         }
     }
@@ -296,6 +306,8 @@ impl PhotonArgs {
             max_split: self.max_split,
             control_variate: self.roulette_cv == Switch::On && roulette != Roulette::Albedo,
             fallback: self.fallback == Switch::On,
+            min_survival: self.min_survival,
+            defensive: self.defensive,
             train_spp: self.train_spp,
             mis: self.mis,
         }
@@ -378,6 +390,12 @@ impl PhotonArgs {
         if !(1..=64).contains(&self.max_split) {
             return Err(Error::InvalidOption("--max-split must lie in 1..=64".into()));
         }
+        if !(self.min_survival > 0.0 && self.min_survival <= 1.0) {
+            return Err(Error::InvalidOption("--min-survival must lie in (0, 1]".into()));
+        }
+        if !(self.defensive.is_finite() && (0.0..=1.0).contains(&self.defensive)) {
+            return Err(Error::InvalidOption("--defensive must lie in [0, 1]".into()));
+        }
         Ok(())
     }
 
@@ -411,6 +429,8 @@ impl PhotonArgs {
             meta.push("roulette_cv", flag_name(self.roulette_cv));
             meta.push("mis", flag_name(self.mis));
             meta.push("fallback", flag_name(self.fallback));
+            meta.push("min_survival", self.min_survival);
+            meta.push("defensive", self.defensive);
         }
     }
 }
