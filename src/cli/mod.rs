@@ -39,6 +39,7 @@ macro_rules! warn {
 mod batch;
 mod converge;
 mod diff;
+pub mod help_doc;
 mod info;
 mod merge;
 mod reference;
