@@ -44,6 +44,7 @@ mod info;
 mod merge;
 mod reference;
 mod render;
+mod shell;
 
 pub use batch::BatchArgs;
 use batch::{check_batch_options, run_batch};
@@ -59,6 +60,8 @@ pub use reference::ReferenceArgs;
 use reference::{check_reference_options, run_reference};
 use render::check_render_options;
 pub use render::{RenderArgs, run_render};
+pub use shell::{CompletionsArgs, ManArgs, man_pages};
+use shell::{run_completions, run_man};
 
 /// The command-line spelling of a value (`zvidpt-terminal`, `solid-angle`), as written into
 /// metadata and tables.
@@ -97,6 +100,10 @@ pub enum Command {
     /// Merge partial renders of sample ranges (`render --samples A..B`) into one image,
     /// bit-identical to a single render of all the samples.
     Merge(MergeArgs),
+    /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
+    Completions(CompletionsArgs),
+    /// Print or install the manual pages (zvidpt.1 and one per subcommand).
+    Man(ManArgs),
 }
 
 /// On or off.
@@ -474,6 +481,8 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Converge(args) => run_converge(&args),
         Command::Batch(args) => run_batch(&args),
         Command::Merge(args) => run_merge(&args),
+        Command::Completions(args) => run_completions(&args),
+        Command::Man(args) => run_man(&args),
     }
 }
 
@@ -500,7 +509,7 @@ pub fn validate(cli: &Cli) -> Result<()> {
         Command::Converge(a) => check_converge_options(a),
         Command::Reference(a) => check_reference_options(a),
         Command::Batch(a) => check_batch_options(a),
-        Command::Diff(_) | Command::Info(_) | Command::Merge(_) => Ok(()),
+        Command::Diff(_) | Command::Info(_) | Command::Merge(_) | Command::Completions(_) | Command::Man(_) => Ok(()),
     }
 }
 
