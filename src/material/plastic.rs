@@ -82,24 +82,35 @@ fn rough_transmittance(mf: Microfacet, eta: f32, wi: Vec3A) -> f64 {
 /// 256 bytes; a scene's materials hold references to it, so the BSDF stays `Copy`).
 pub(super) fn rough_coat(mf: Microfacet, eta: f32) -> (RoughCoat, f32) {
     use super::microfacet::Distribution;
+    use rayon::prelude::*;
     use std::collections::HashMap;
     use std::sync::{Mutex, OnceLock};
     type Tables = HashMap<(Distribution, u32, u32), (&'static [f32; COAT_TABLE], f32)>;
     static TABLES: OnceLock<Mutex<Tables>> = OnceLock::new();
+    let tables = || TABLES.get_or_init(Mutex::default).lock().unwrap_or_else(std::sync::PoisonError::into_inner);
     // The table depends on the distribution, not on how masking and shadowing combine.
     let key = (mf.distribution, mf.alpha.to_bits(), eta.to_bits());
-    let mut tables = TABLES.get_or_init(Mutex::default).lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-    let (table, fdr) = *tables.entry(key).or_insert_with(|| {
-        let mut table = [0.0f32; COAT_TABLE];
-        let mut inside = 0.0f64;
-        for (i, t) in table.iter_mut().enumerate() {
+    if let Some(&(table, fdr)) = tables().get(&key) {
+        return (RoughCoat { mf, transmittance: table }, fdr);
+    }
+    // Computed without the lock (a scene's materials are built in parallel), the entries in
+    // parallel and the internal reflectance summed in order: the same bits on any thread count.
+    let entries: Vec<(f32, f64)> = (0..COAT_TABLE)
+        .into_par_iter()
+        .map(|i| {
             let mu = (i as f32 / (COAT_TABLE - 1) as f32).max(1e-6);
             let wi = Vec3A::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
-            *t = rough_transmittance(mf, eta, wi) as f32;
-            inside += rough_reflectance(mf, 1.0 / eta, wi) * f64::from(mu);
-        }
-        (&*Box::leak(Box::new(table)), (2.0 * inside / COAT_TABLE as f64) as f32)
-    });
+            (rough_transmittance(mf, eta, wi) as f32, rough_reflectance(mf, 1.0 / eta, wi) * f64::from(mu))
+        })
+        .collect();
+    let mut table = [0.0f32; COAT_TABLE];
+    let mut inside = 0.0f64;
+    for (t, (transmittance, reflected)) in table.iter_mut().zip(entries) {
+        *t = transmittance;
+        inside += reflected;
+    }
+    let fdr = (2.0 * inside / COAT_TABLE as f64) as f32;
+    let (table, fdr) = *tables().entry(key).or_insert_with(|| (&*Box::leak(Box::new(table)), fdr));
     (RoughCoat { mf, transmittance: table }, fdr)
 }
 

@@ -69,11 +69,12 @@ impl Scene {
         let mut scene = build(path, d)?;
         warnings.append(&mut scene.warnings);
         scene.warnings = warnings;
-        for file in files.into_iter().rev() {
-            if !scene.sources.contains(&file) {
-                scene.sources.insert(0, file);
-            }
-        }
+        // The importer's files first (each once, at its last mention), then the scene's own.
+        let mut seen: std::collections::HashSet<PathBuf> = scene.sources.iter().cloned().collect();
+        let mut front: Vec<PathBuf> = files.into_iter().rev().filter(|f| seen.insert(f.clone())).collect();
+        front.reverse();
+        front.append(&mut scene.sources);
+        scene.sources = front;
         Ok(scene)
     }
 
@@ -304,15 +305,7 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
         })?;
     }
 
-    let (textures, texture_ids, texture_sources, texture_uv) = textures_from(path, &d)?;
-    let mut meshes = Meshes::default();
-    for (name, m) in &d.materials {
-        meshes.by_name.insert(name.clone(), meshes.materials.len() as u32);
-        meshes.materials.push(material_from(path, name, m, &texture_ids, |t| textures[usize::from(t)].mean())?);
-    }
-
     let folder = path.parent().unwrap_or(Path::new("."));
-    let mut sources = Vec::new();
     // A file placed more than once (instancing) is read once: its triangles as read, before
     // any placement, are kept and copied.
     type MeshKey = (PathBuf, bool, Option<String>, bool);
@@ -328,11 +321,51 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
     for mesh in &d.meshes {
         *uses.entry(key(mesh)).or_default() += 1;
     }
+    // Image and mesh files are read and parsed in parallel, each once (a scene may hold
+    // hundreds of meshes beside dozens of megapixels of texture); their triangles are added
+    // in the scene's order below, and any error is reported there, in that order.
+    let to_parse: Vec<MeshKey> = {
+        let mut seen = std::collections::HashSet::new();
+        let valid = |m: &&super::description::MeshDescription| {
+            m.obj.as_ref().xor(m.ply.as_ref()).is_some_and(|f| !f.is_empty())
+        };
+        d.meshes.iter().filter(valid).map(key).filter(|k| seen.insert(k.clone())).collect()
+    };
+    let (textures, mut parsed) = rayon::join(
+        || textures_from(path, &d),
+        || {
+            use rayon::prelude::*;
+            to_parse
+                .into_par_iter()
+                .map(|k| {
+                    let parsed = parse_mesh_file(&k.0, k.1);
+                    (k, parsed)
+                })
+                .collect::<HashMap<_, _>>()
+        },
+    );
+    let (textures, texture_ids, texture_sources, texture_uv) = textures?;
+    let mut meshes = Meshes::default();
+    // A texture's mean is a pass over all its texels: computed once, when a material asks.
+    let means: Vec<std::sync::OnceLock<Vec3A>> = textures.iter().map(|_| std::sync::OnceLock::new()).collect();
+    let mean_of = |t: u16| *means[usize::from(t)].get_or_init(|| textures[usize::from(t)].mean());
+    // Independent of each other (a rough plastic's coat table is a few ms of quadrature):
+    // built in parallel, kept in the materials' order, the first error in that order reported.
+    let built: Vec<Result<_>> = {
+        use rayon::prelude::*;
+        let list: Vec<_> = d.materials.iter().collect();
+        list.into_par_iter().map(|(name, m)| material_from(path, name, m, &texture_ids, mean_of)).collect()
+    };
+    for ((name, _), material) in d.materials.iter().zip(built) {
+        meshes.by_name.insert(name.clone(), meshes.materials.len() as u32);
+        meshes.materials.push(material?);
+    }
+
+    let mut sources = Vec::new();
     let mut read_before: HashMap<MeshKey, Geometry> = HashMap::new();
     for mesh in &d.meshes {
-        let (file, is_ply) = match (&mesh.obj, &mesh.ply) {
-            (Some(f), None) => (f, false),
-            (None, Some(f)) => (f, true),
+        let file = match (&mesh.obj, &mesh.ply) {
+            (Some(f), None) | (None, Some(f)) => f,
             _ => return Err(invalid(path, "a [[mesh]] names one file: `obj = \"...\"` or `ply = \"...\"`")),
         };
         if file.is_empty() {
@@ -345,7 +378,9 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
             append_geometry(&mut meshes.geometry, raw).map_err(|e| invalid(path, format!("mesh `{file}`: {e}")))?;
         } else {
             sources.push(mesh_path.clone());
-            read_mesh(path, mesh, file, &mesh_path, is_ply, &mut meshes)?;
+            let file_parsed =
+                parsed.remove(&mesh_key).ok_or_else(|| invalid(path, format!("mesh `{file}`: not read")))?;
+            read_mesh(path, mesh, file, &mesh_path, file_parsed, &mut meshes)?;
             if uses.get(&mesh_key).is_some_and(|&n| n > 1) {
                 read_before.insert(mesh_key, copy_geometry(&meshes.geometry, start));
             }

@@ -422,13 +422,63 @@ pub(super) fn push_face(g: &mut Geometry, face: &mut Face, material: u32, revers
     Ok(())
 }
 
-/// Reads a `[[mesh]]`'s file into `meshes` (before its placement).
+/// A mesh file read and parsed but not yet turned into triangles: the costly part of
+/// reading a mesh, which needs nothing of the scene and so runs in parallel over the files
+/// (see [`parse_mesh_file`]); [`read_mesh`] then adds it in the scene's order.
+pub(super) enum ParsedMesh {
+    Obj(ParsedObj),
+    Ply(ply::PlyMesh),
+}
+
+/// What tobj made of an OBJ file: its models, its material libraries, and why a library
+/// could not be read.
+pub(super) struct ParsedObj {
+    models: Vec<tobj::Model>,
+    mtl: Result<Vec<tobj::Material>, tobj::LoadError>,
+    mtl_note: Option<String>,
+}
+
+/// Reads and parses the mesh file `mesh_path` (PLY when `is_ply`, else OBJ with its `mtllib`
+/// files beside it).
+pub(super) fn parse_mesh_file(mesh_path: &Path, is_ply: bool) -> Result<ParsedMesh> {
+    if is_ply {
+        let mut bytes = read_bounded(mesh_path, MAX_MESH_BYTES, "mesh (PLY) file")?;
+        if mesh_path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gz")) {
+            bytes = gunzip(mesh_path, &bytes)?;
+        }
+        return parse_ply(mesh_path, &bytes).map(ParsedMesh::Ply);
+    }
+    if mesh_path.as_os_str().is_empty() || mesh_path.file_name().is_none() {
+        return Err(Error::Mesh {
+            path: mesh_path.to_path_buf(),
+            message: "the mesh path is empty or names a folder".into(),
+        });
+    }
+    let text = read_text(mesh_path, MAX_MESH_BYTES, "mesh (OBJ) file")?;
+    let folder = mesh_path.parent().unwrap_or(Path::new("."));
+    // tobj only learns that a library failed; why goes here.
+    let mtl_note = RefCell::new(None);
+    let loader = |name: &Path| {
+        let path = folder.join(name);
+        match read_text(&path, MAX_MESH_BYTES, "material library (MTL)") {
+            Ok(t) => parse_mtl(&t),
+            Err(e) => {
+                *mtl_note.borrow_mut() = Some(e.to_string());
+                Err(tobj::LoadError::OpenFileFailed)
+            }
+        }
+    };
+    parse_obj(mesh_path, &text, &loader, &mtl_note).map(ParsedMesh::Obj)
+}
+
+/// Adds a `[[mesh]]`'s file, as [`parse_mesh_file`] read it, to `meshes` (before its
+/// placement). The scene's own checks come first, then the file's errors.
 pub(super) fn read_mesh(
     path: &Path,
     mesh: &super::description::MeshDescription,
     file: &str,
     mesh_path: &Path,
-    is_ply: bool,
+    parsed: Result<ParsedMesh>,
     meshes: &mut Meshes,
 ) -> Result<()> {
     let override_id = match &mesh.material {
@@ -440,13 +490,21 @@ pub(super) fn read_mesh(
         ),
         None => None,
     };
-    if is_ply {
+    if mesh.ply.is_some() {
         let material = override_id.ok_or_else(|| {
             invalid(path, format!("mesh `{file}`: a PLY mesh needs `material = \"...\"` (PLY has no materials)"))
         })?;
-        load_ply(mesh_path, material, mesh.reverse_winding, &mut meshes.geometry)
+        match parsed? {
+            ParsedMesh::Ply(ply) => {
+                ply_mesh_into(mesh_path, &ply, material, mesh.reverse_winding, &mut meshes.geometry)
+            }
+            ParsedMesh::Obj(_) => unreachable!("a PLY mesh is parsed as PLY"),
+        }
     } else {
-        load_obj(mesh_path, override_id, mesh.reverse_winding, meshes)
+        match parsed? {
+            ParsedMesh::Obj(obj) => obj_models_into(mesh_path, obj, override_id, mesh.reverse_winding, meshes),
+            ParsedMesh::Ply(_) => unreachable!("an OBJ mesh is parsed as OBJ"),
+        }
     }
 }
 
@@ -534,14 +592,6 @@ pub(super) struct Meshes {
 
 /// Adds the triangles of the PLY file `ply_path`, all of `material` (polygons triangulated as
 /// OBJ faces are; vertex normals and texture coordinates kept where every vertex has them).
-pub(super) fn load_ply(ply_path: &Path, material: u32, reverse: bool, geometry: &mut Geometry) -> Result<()> {
-    let mut bytes = read_bounded(ply_path, MAX_MESH_BYTES, "mesh (PLY) file")?;
-    if ply_path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gz")) {
-        bytes = gunzip(ply_path, &bytes)?;
-    }
-    ply_into(ply_path, &bytes, material, reverse, geometry)
-}
-
 /// A gzip file's contents (pbrt's `.ply.gz`), at most [`MAX_MESH_BYTES`] of them.
 pub(super) fn gunzip(path: &Path, bytes: &[u8]) -> Result<Vec<u8>> {
     use std::io::Read;
@@ -567,8 +617,24 @@ pub(super) fn ply_into(
     reverse: bool,
     geometry: &mut Geometry,
 ) -> Result<()> {
+    ply_mesh_into(ply_path, &parse_ply(ply_path, bytes)?, material, reverse, geometry)
+}
+
+/// PLY bytes `bytes` (named `ply_path` in errors) parsed.
+fn parse_ply(ply_path: &Path, bytes: &[u8]) -> Result<ply::PlyMesh> {
+    ply::parse(bytes)
+        .map_err(|m| Error::Mesh { path: ply_path.to_path_buf(), message: format!("not a valid PLY file ({m})") })
+}
+
+/// Adds the triangles of the parsed PLY file `mesh` (named `ply_path` in errors).
+fn ply_mesh_into(
+    ply_path: &Path,
+    mesh: &ply::PlyMesh,
+    material: u32,
+    reverse: bool,
+    geometry: &mut Geometry,
+) -> Result<()> {
     let mesh_err = |message: String| Error::Mesh { path: ply_path.to_path_buf(), message };
-    let mesh = ply::parse(bytes).map_err(|m| mesh_err(format!("not a valid PLY file ({m})")))?;
     if let Some(i) = mesh.positions.iter().position(|p| !p.is_finite()) {
         return Err(mesh_err(format!("vertex {} has a non-finite coordinate", i + 1)));
     }
@@ -605,31 +671,6 @@ pub(super) fn ply_into(
     Ok(())
 }
 
-/// Adds the triangles of the OBJ file `obj_path` (its `mtllib` files read beside it).
-pub(super) fn load_obj(obj_path: &Path, override_id: Option<u32>, reverse: bool, meshes: &mut Meshes) -> Result<()> {
-    if obj_path.as_os_str().is_empty() || obj_path.file_name().is_none() {
-        return Err(Error::Mesh {
-            path: obj_path.to_path_buf(),
-            message: "the mesh path is empty or names a folder".into(),
-        });
-    }
-    let text = read_text(obj_path, MAX_MESH_BYTES, "mesh (OBJ) file")?;
-    let folder = obj_path.parent().unwrap_or(Path::new("."));
-    // tobj only learns that a library failed; why goes here.
-    let mtl_note = RefCell::new(None);
-    let loader = |name: &Path| {
-        let path = folder.join(name);
-        match read_text(&path, MAX_MESH_BYTES, "material library (MTL)") {
-            Ok(t) => parse_mtl(&t),
-            Err(e) => {
-                *mtl_note.borrow_mut() = Some(e.to_string());
-                Err(tobj::LoadError::OpenFileFailed)
-            }
-        }
-    };
-    obj_into(obj_path, &text, &loader, &mtl_note, override_id, reverse, meshes)
-}
-
 /// Adds the triangles of OBJ text `text` (named `obj_path` in errors; `mtllib` files come
 /// from `mtl_loader`, which may leave in `mtl_note` why one could not be loaded).
 pub(super) fn obj_into(
@@ -641,14 +682,37 @@ pub(super) fn obj_into(
     reverse: bool,
     meshes: &mut Meshes,
 ) -> Result<()> {
-    let Meshes { materials, by_name, geometry } = meshes;
-    let mesh_err = |message: String| Error::Mesh { path: obj_path.to_path_buf(), message };
+    obj_models_into(obj_path, parse_obj(obj_path, text, mtl_loader, mtl_note)?, override_id, reverse, meshes)
+}
+
+/// OBJ text `text` parsed (named `obj_path` in errors; `mtllib` files come from
+/// `mtl_loader`, which may leave in `mtl_note` why one could not be loaded).
+fn parse_obj(
+    obj_path: &Path,
+    text: &str,
+    mtl_loader: &dyn Fn(&Path) -> tobj::MTLLoadResult,
+    mtl_note: &RefCell<Option<String>>,
+) -> Result<ParsedObj> {
     // Polygons are kept whole (tobj would fan them, wrong for concave ones) and points and
     // lines kept too, so that nothing is dropped without a word.
     let options =
         tobj::LoadOptions { triangulate: false, ignore_points: false, ignore_lines: false, ..Default::default() };
     let (models, mtl) = tobj::load_obj_buf(&mut text.as_bytes(), &options, mtl_loader)
-        .map_err(|e| mesh_err(format!("not a valid OBJ file ({e})")))?;
+        .map_err(|e| Error::Mesh { path: obj_path.to_path_buf(), message: format!("not a valid OBJ file ({e})") })?;
+    Ok(ParsedObj { models, mtl, mtl_note: mtl_note.take() })
+}
+
+/// Adds the triangles of the parsed OBJ file `obj` (named `obj_path` in errors).
+fn obj_models_into(
+    obj_path: &Path,
+    obj: ParsedObj,
+    override_id: Option<u32>,
+    reverse: bool,
+    meshes: &mut Meshes,
+) -> Result<()> {
+    let Meshes { materials, by_name, geometry } = meshes;
+    let mesh_err = |message: String| Error::Mesh { path: obj_path.to_path_buf(), message };
+    let ParsedObj { models, mtl, mut mtl_note } = obj;
     // MTL materials: a name the scene file defines wins; otherwise Kd/Ke from the MTL.
     let mut mtl_ids = Vec::new();
     match mtl {

@@ -89,6 +89,9 @@ struct Reader<'o> {
     include_depth: usize,
     /// Every file read (the scene's sources).
     files: Vec<PathBuf>,
+    /// The byte offsets of the newlines of each document being read, innermost include last:
+    /// a node's line is a binary search, not a count from the start of its file.
+    newlines: Vec<Vec<usize>>,
 }
 
 /// Reads the Mitsuba 3 scene at `path`.
@@ -99,6 +102,7 @@ pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result
         warnings: Vec::new(),
         include_depth: 0,
         files: vec![path.to_path_buf()],
+        newlines: Vec::new(),
     };
     let root = reader.read_document(path, text)?;
     let mut t = Translator {
@@ -130,18 +134,31 @@ impl Reader<'_> {
             Error::SceneSyntax { path: path.to_path_buf(), message: format!("line {}: {e}", pos.row) }
         })?;
         let root = doc.root_element();
-        let at = At { file: file.clone(), line: doc.text_pos_at(root.range().start).row };
+        self.newlines.push(text.bytes().enumerate().filter(|&(_, b)| b == b'\n').map(|(i, _)| i).collect());
+        let read = self.read_root(&doc, root, &file);
+        self.newlines.pop();
+        read
+    }
+
+    fn read_root(&mut self, doc: &roxmltree::Document, root: roxmltree::Node, file: &Rc<PathBuf>) -> Result<Obj> {
+        let at = self.at(doc, root, file);
         if root.tag_name().name() != "scene" {
             return Err(syntax(&at, format!("the root element is <{}>, not <scene>", root.tag_name().name())));
         }
         let mut scene =
             Obj { tag: "scene".into(), plugin: String::new(), id: None, at, params: Vec::new(), children: Vec::new() };
-        self.read_children(&doc, root, &file, &mut scene, 0, false)?;
+        self.read_children(doc, root, file, &mut scene, 0, false)?;
         Ok(scene)
     }
 
+    /// Where `node` starts: its file and line (1 + the newlines before it).
     fn at(&self, doc: &roxmltree::Document, node: roxmltree::Node, file: &Rc<PathBuf>) -> At {
-        At { file: file.clone(), line: doc.text_pos_at(node.range().start).row }
+        let start = node.range().start;
+        let line = match self.newlines.last() {
+            Some(newlines) => 1 + newlines.partition_point(|&i| i < start),
+            None => doc.text_pos_at(start).row as usize,
+        };
+        At { file: file.clone(), line: u32::try_from(line).unwrap_or(u32::MAX) }
     }
 
     /// Attribute `name` of `node` with `$name` references substituted.
