@@ -166,33 +166,37 @@ impl Microfacet {
         Vec3A::new(self.alpha * nh.x, self.alpha * nh.y, nh.z.max(1e-7)).normalize()
     }
 
-    /// Beckmann's visible normals, in slopes: stretched to unit roughness and turned so that
-    /// `wi` lies in the xz-plane at angle `θ`, a normal `m ∝ (−x, −y, 1)` is visible when
-    /// `x < cot θ`, and visible slopes have the density `∝ e^{−x²−y²}·(cot θ − x)` there. So
-    /// `y` is a standard Gaussian over `√2` (`erf(y) = 2u − 1`), and `x` has the cumulative
-    /// `C(x) = cot θ·(√π/2)·(1 + erf x) + e^{−x²}/2`, inverted numerically to 1e-12 relative:
-    /// the density sampled is the formula's.
+    /// Beckmann's visible normals (see [`BeckmannView`]).
     fn sample_visible_beckmann(&self, wi: Vec3A, u: Vec2) -> Vec3A {
-        let alpha = f64::from(self.alpha);
-        let (sx, sy, sz) = (alpha * f64::from(wi.x), alpha * f64::from(wi.y), f64::from(wi.z));
-        let sin = (sx * sx + sy * sy).sqrt();
-        let (cos_phi, sin_phi) = if sin > 0.0 { (sx / sin, sy / sin) } else { (1.0, 0.0) };
-        let half_sqrt_pi = 0.5 / FRAC_1_SQRT_PI;
-        let (u1, u2) = (f64::from(u.x), f64::from(u.y));
-        let x = if sin <= 1e-12 * sz {
-            // Normal incidence: the weight (cot θ − x) is constant.
-            solve_increasing(-6.0, 6.0, 2.0 * u1 - 1.0, |x| (libm::erf(x), 2.0 * FRAC_1_SQRT_PI * (-x * x).exp()))
-        } else {
-            let cot = sz / sin;
-            let cdf = |x: f64| cot * half_sqrt_pi * (1.0 + libm::erf(x)) + 0.5 * (-x * x).exp();
-            let total = cdf(cot);
-            solve_increasing(-6.0, cot.min(6.0), u1 * total, |x| (cdf(x), (-x * x).exp() * (cot - x)))
-        };
-        let y = solve_increasing(-6.0, 6.0, 2.0 * u2 - 1.0, |y| (libm::erf(y), 2.0 * FRAC_1_SQRT_PI * (-y * y).exp()));
-        // Turn back and unstretch the slopes.
-        let (px, py) = (alpha * (cos_phi * x - sin_phi * y), alpha * (sin_phi * x + cos_phi * y));
-        let m = Vec3A::new(-px as f32, -py as f32, 1.0);
-        m.normalize()
+        let frame = BeckmannView::new(self.alpha, wi);
+        frame.normal(frame.slope_x(u.x), BeckmannView::slope_y(u.y))
+    }
+
+    /// `f` of the normals [`Microfacet::sample_visible`] gives from `wi` at the midpoints of an
+    /// `n × n` grid over its square, row by row (`u.x` outer): the same normals, bit for bit,
+    /// but for Beckmann each of the `n` values of `u.x` and of `u.y` is inverted once, not `n`
+    /// times (a rough plastic's coat table is such a grid per incidence).
+    pub fn for_visible_grid(&self, wi: Vec3A, n: usize, mut f: impl FnMut(Vec3A)) {
+        let mid = |k: usize| (k as f32 + 0.5) / n as f32;
+        match self.distribution {
+            Distribution::Ggx => {
+                for a in 0..n {
+                    for b in 0..n {
+                        f(self.sample_visible_ggx(wi, Vec2::new(mid(a), mid(b))));
+                    }
+                }
+            }
+            Distribution::Beckmann => {
+                let frame = BeckmannView::new(self.alpha, wi);
+                let ys: Vec<f64> = (0..n).map(|b| BeckmannView::slope_y(mid(b))).collect();
+                for a in 0..n {
+                    let x = frame.slope_x(mid(a));
+                    for &y in &ys {
+                        f(frame.normal(x, y));
+                    }
+                }
+            }
+        }
     }
 
     /// Density (solid angle of `m`) of [`Microfacet::sample_visible`] from `wi`.
@@ -233,6 +237,60 @@ fn solve_increasing(mut lo: f64, mut hi: f64, target: f64, f: impl Fn(f64) -> (f
     x
 }
 
+/// Beckmann's visible normals from one direction, in slopes: stretched to unit roughness and
+/// turned so that `wi` lies in the xz-plane at angle `θ`, a normal `m ∝ (−x, −y, 1)` is visible
+/// when `x < cot θ`, and visible slopes have the density `∝ e^{−x²−y²}·(cot θ − x)` there. So
+/// `y` is a standard Gaussian over `√2` (`erf(y) = 2u − 1`), and `x` has the cumulative
+/// `C(x) = cot θ·(√π/2)·(1 + erf x) + e^{−x²}/2`, inverted numerically to 1e-12 relative: the
+/// density sampled is the formula's.
+struct BeckmannView {
+    alpha: f64,
+    cos_phi: f64,
+    sin_phi: f64,
+    /// `cot θ`, or `None` at normal incidence (where the weight `cot θ − x` is constant).
+    cot: Option<f64>,
+}
+
+impl BeckmannView {
+    fn new(alpha: f32, wi: Vec3A) -> Self {
+        let alpha = f64::from(alpha);
+        let (sx, sy, sz) = (alpha * f64::from(wi.x), alpha * f64::from(wi.y), f64::from(wi.z));
+        let sin = (sx * sx + sy * sy).sqrt();
+        let (cos_phi, sin_phi) = if sin > 0.0 { (sx / sin, sy / sin) } else { (1.0, 0.0) };
+        let cot = if sin <= 1e-12 * sz { None } else { Some(sz / sin) };
+        Self { alpha, cos_phi, sin_phi, cot }
+    }
+
+    /// The slope along the view's azimuth for the sample `u1`.
+    fn slope_x(&self, u1: f32) -> f64 {
+        let u1 = f64::from(u1);
+        match self.cot {
+            None => {
+                solve_increasing(-6.0, 6.0, 2.0 * u1 - 1.0, |x| (libm::erf(x), 2.0 * FRAC_1_SQRT_PI * (-x * x).exp()))
+            }
+            Some(cot) => {
+                let half_sqrt_pi = 0.5 / FRAC_1_SQRT_PI;
+                let cdf = |x: f64| cot * half_sqrt_pi * (1.0 + libm::erf(x)) + 0.5 * (-x * x).exp();
+                let total = cdf(cot);
+                solve_increasing(-6.0, cot.min(6.0), u1 * total, |x| (cdf(x), (-x * x).exp() * (cot - x)))
+            }
+        }
+    }
+
+    /// The slope across the view's azimuth for the sample `u2` (the same from every view).
+    fn slope_y(u2: f32) -> f64 {
+        let u2 = f64::from(u2);
+        solve_increasing(-6.0, 6.0, 2.0 * u2 - 1.0, |y| (libm::erf(y), 2.0 * FRAC_1_SQRT_PI * (-y * y).exp()))
+    }
+
+    /// The normal of the slopes `(x, y)`: turned back and unstretched.
+    fn normal(&self, x: f64, y: f64) -> Vec3A {
+        let (px, py) =
+            (self.alpha * (self.cos_phi * x - self.sin_phi * y), self.alpha * (self.sin_phi * x + self.cos_phi * y));
+        Vec3A::new(-px as f32, -py as f32, 1.0).normalize()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -269,6 +327,23 @@ mod tests {
             }
             assert!((proj - 1.0).abs() < 2e-3, "{distribution:?} alpha {alpha}: ∫D cos = {proj}");
             assert!((vis - 1.0).abs() < 2e-3, "{distribution:?} alpha {alpha}: ∫ visible pdf = {vis}");
+        }
+    }
+
+    /// The grid walk gives the normals of `sample_visible` at the grid's midpoints, bit for bit.
+    #[test]
+    fn visible_grid_is_sample_visible() {
+        for (distribution, alpha) in [0.05, 0.3].into_iter().flat_map(|a| BOTH.map(|d| (d, a))) {
+            let mf = Microfacet::new(distribution, Masking::Correlated, alpha);
+            for wi in [Vec3A::Z, dir(0.7, 0.4), dir(1.5, 2.0)] {
+                let n = 7;
+                let mut grid = Vec::new();
+                mf.for_visible_grid(wi, n, |m| grid.push(m));
+                let mid = |k: usize| (k as f32 + 0.5) / n as f32;
+                let each: Vec<Vec3A> =
+                    (0..n * n).map(|k| mf.sample_visible(wi, Vec2::new(mid(k / n), mid(k % n)))).collect();
+                assert_eq!(grid, each, "{distribution:?} alpha {alpha} wi {wi}");
+            }
         }
     }
 

@@ -5,7 +5,7 @@ use super::dielectric::refract;
 use super::fresnel;
 use super::microfacet::Microfacet;
 use super::reflect;
-use crate::geometry::{Vec2, Vec3A};
+use crate::geometry::Vec3A;
 use std::f32::consts::FRAC_1_PI;
 
 /// Entries of a rough plastic's transmittance table, over `cos θ ∈ [0, 1]` (Mitsuba's 64).
@@ -36,15 +36,12 @@ impl RoughCoat {
 fn visible_mean(mf: Microfacet, wi: Vec3A, w: impl Fn(Vec3A) -> f32) -> f64 {
     const N: usize = 64;
     let mut sum = 0.0f64;
-    for a in 0..N {
-        for b in 0..N {
-            let u = Vec2::new((a as f32 + 0.5) / N as f32, (b as f32 + 0.5) / N as f32);
-            let v = w(mf.sample_visible(wi, u));
-            if v.is_finite() {
-                sum += f64::from(v);
-            }
+    mf.for_visible_grid(wi, N, |m| {
+        let v = w(m);
+        if v.is_finite() {
+            sum += f64::from(v);
         }
-    }
+    });
     sum / (N * N) as f64
 }
 
@@ -93,8 +90,8 @@ pub(super) fn rough_coat(mf: Microfacet, eta: f32) -> (RoughCoat, f32) {
     if let Some(&(table, fdr)) = tables().get(&key) {
         return (RoughCoat { mf, transmittance: table }, fdr);
     }
-    // Computed without the lock (a scene's materials are built in parallel), the entries in
-    // parallel and the internal reflectance summed in order: the same bits on any thread count.
+    // Computed without holding the lock, the entries in parallel and the internal reflectance
+    // summed in order: the same bits on any thread count.
     let entries: Vec<(f32, f64)> = (0..COAT_TABLE)
         .into_par_iter()
         .map(|i| {

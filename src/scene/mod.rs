@@ -386,15 +386,13 @@ impl Scene {
             let (kind, values): (String, &[Vec3A]) = match t {
                 Texture::Constant(c) => ("constant".into(), std::slice::from_ref(c)),
                 Texture::Checkerboard { a, b, scale } => (format!("checkerboard {a} {b} {scale}"), &[] as &[Vec3A]),
-                Texture::Bitmap(b) => {
-                    (format!("bitmap {}x{} {:?} {:?}", b.width, b.height, b.wrap, b.filter), &b.texels)
-                }
+                Texture::Bitmap(b) => (format!("bitmap {}x{} {:?} {:?}", b.width, b.height, b.wrap, b.filter), &[]),
             };
             kind.bytes().for_each(|b| eat(u32::from(b)));
-            if let Texture::Bitmap(_) = t {
+            if let Texture::Bitmap(b) = t {
                 // Megapixels of texels: a digest of fixed chunks hashed in parallel (byte by
                 // byte they took half of a textured scene's load).
-                let d = texel_digest(values);
+                let d = texel_digest(&b.texels);
                 eat(d as u32);
                 eat((d >> 32) as u32);
             } else {
@@ -529,16 +527,18 @@ impl Scene {
 /// A 64-bit digest of texels: FNV-1a over 64-bit words (two channels each) of every chunk of
 /// 65,536 texels, in parallel, then of the chunks' digests in order: the same value whatever
 /// the thread count.
-fn texel_digest(texels: &[Vec3A]) -> u64 {
+fn texel_digest(texels: &crate::texture::Texels) -> u64 {
     use rayon::prelude::*;
     const PRIME: u64 = 0x0000_0100_0000_01b3;
+    const CHUNK: usize = 1 << 16;
     fn fnv(words: impl Iterator<Item = u64>) -> u64 {
         words.fold(0xcbf2_9ce4_8422_2325u64, |h, w| (h ^ w).wrapping_mul(PRIME))
     }
-    let chunks: Vec<u64> = texels
-        .par_chunks(1 << 16)
+    let n = texels.len();
+    let chunks: Vec<u64> = (0..n.div_ceil(CHUNK))
+        .into_par_iter()
         .map(|c| {
-            fnv(c.iter().flat_map(|v| {
+            fnv(texels.values_in(c * CHUNK..((c + 1) * CHUNK).min(n)).flat_map(|v| {
                 let [r, g, b] = v.to_array().map(f32::to_bits);
                 [u64::from(r) | u64::from(g) << 32, u64::from(b)]
             }))
@@ -550,6 +550,21 @@ fn texel_digest(texels: &[Vec3A]) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A bitmap's digest depends on its values, not on how its texels are stored.
+    #[test]
+    fn texel_digest_is_of_values() {
+        use crate::texture::Texels;
+        let n = (1 << 16) + 77;
+        let codes: Vec<[u8; 3]> = (0..n).map(|k| [k as u8, (k >> 8) as u8, (k * 31) as u8]).collect();
+        let table: [f32; 256] = std::array::from_fn(|v| v as f32 / 255.0);
+        let decoded = codes.iter().map(|c| Vec3A::from_array(c.map(|v| table[v as usize]))).collect();
+        let (coded, linear) = (Texels::Coded { codes, table: Box::new([table; 3]) }, Texels::Linear(decoded));
+        assert_eq!(texel_digest(&coded), texel_digest(&linear));
+        let mut other = linear.clone();
+        other.map_channels(|v| v * 0.5);
+        assert_ne!(texel_digest(&other), texel_digest(&linear));
+    }
 
     /// A texture's `uv_transform` maps coordinates before the lookup (Mitsuba's `to_uv`): a
     /// checkerboard shifted by half a period swaps its colours.

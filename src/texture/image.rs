@@ -1,5 +1,5 @@
 //! Reading a bitmap from an image file.
-use super::{Bitmap, Filter, Wrap, srgb_to_linear};
+use super::{Bitmap, Filter, Texels, Wrap, srgb_to_linear};
 use crate::geometry::Vec3A;
 use std::path::Path;
 
@@ -63,22 +63,26 @@ impl Bitmap {
             ImageFormat::Exr => {
                 let (image, _) = crate::film::read_exr(path)?;
                 let texels = image.pixels.iter().map(|p| Vec3A::from_array(*p)).collect();
-                (image.width as usize, image.height as usize, texels)
+                (image.width as usize, image.height as usize, Texels::Linear(texels))
             }
             _ => {
                 let bytes = crate::io::read_bounded(path, MAX_IMAGE_FILE_BYTES, "image file")?;
-                decode(&bytes, format, raw).map_err(err)?
+                decode_texels(&bytes, format, raw).map_err(err)?
             }
         };
-        Self::new(width, height, texels, wrap, filter).ok_or_else(|| err("the image has no pixels".into()))
+        Self::with_texels(width, height, texels, wrap, filter).ok_or_else(|| err("the image has no pixels".into()))
     }
 }
 
 /// Decodes an image held in memory (any format but PNG and EXR, which are read from their
 /// files): its width, height and linear texels, row-major from the top row.
 pub fn decode(bytes: &[u8], format: ImageFormat, raw: bool) -> Result<(usize, usize, Vec<Vec3A>), String> {
+    decode_texels(bytes, format, raw).map(|(w, h, t)| (w, h, t.into_linear()))
+}
+
+fn decode_texels(bytes: &[u8], format: ImageFormat, raw: bool) -> Result<(usize, usize, Texels), String> {
     match format {
-        ImageFormat::Pfm => decode_pfm(bytes),
+        ImageFormat::Pfm => decode_pfm(bytes).map(|(w, h, t)| (w, h, Texels::Linear(t))),
         ImageFormat::Hdr | ImageFormat::Tga | ImageFormat::Jpeg => decode_with_image(bytes, format, raw),
         ImageFormat::Png | ImageFormat::Exr => Err(format!("{format:?} images are read from files")),
     }
@@ -150,7 +154,7 @@ fn decode_pfm(bytes: &[u8]) -> Result<(usize, usize, Vec<Vec3A>), String> {
 
 /// TGA, JPEG and Radiance HDR through the `image` crate, with its limits set from ours so
 /// that a crafted header is an error before anything is allocated.
-fn decode_with_image(bytes: &[u8], format: ImageFormat, raw: bool) -> Result<(usize, usize, Vec<Vec3A>), String> {
+fn decode_with_image(bytes: &[u8], format: ImageFormat, raw: bool) -> Result<(usize, usize, Texels), String> {
     let kind = match format {
         ImageFormat::Hdr => image::ImageFormat::Hdr,
         ImageFormat::Tga => image::ImageFormat::Tga,
@@ -170,28 +174,35 @@ fn decode_with_image(bytes: &[u8], format: ImageFormat, raw: bool) -> Result<(us
     reader.limits(limits);
     let img = reader.decode().map_err(|e| format!("not a readable {format:?} image: {e}"))?;
     let (w, h) = (img.width() as usize, img.height() as usize);
-    let texels: Vec<Vec3A> = if format.is_linear() {
-        img.into_rgb32f().pixels().map(|p| Vec3A::new(p[0], p[1], p[2]).max(Vec3A::ZERO)).collect()
+    let texels = if format.is_linear() {
+        Texels::Linear(img.into_rgb32f().pixels().map(|p| Vec3A::new(p[0], p[1], p[2]).max(Vec3A::ZERO)).collect())
     } else {
         // 8- or 16-bit display values, each channel through one table (or the curve).
         let decode = |c: f32| if raw { c } else { srgb_to_linear(c) };
-        let lut: Vec<f32> = (0..256).map(|v| decode(v as f32 / 255.0)).collect();
         match img {
             image::DynamicImage::ImageLuma16(_)
             | image::DynamicImage::ImageLumaA16(_)
             | image::DynamicImage::ImageRgb16(_)
-            | image::DynamicImage::ImageRgba16(_) => img
-                .into_rgb16()
-                .pixels()
-                .map(|p| Vec3A::from_array(p.0.map(|c| decode(f32::from(c) / 65535.0))))
-                .collect(),
-            _ => img.into_rgb8().pixels().map(|p| Vec3A::from_array(p.0.map(|c| lut[c as usize]))).collect(),
+            | image::DynamicImage::ImageRgba16(_) => Texels::Linear(
+                img.into_rgb16()
+                    .pixels()
+                    .map(|p| Vec3A::from_array(p.0.map(|c| decode(f32::from(c) / 65535.0))))
+                    .collect(),
+            ),
+            _ => Texels::Coded { codes: img.into_rgb8().pixels().map(|p| p.0).collect(), table: code_table(raw) },
         }
     };
     if texels.len() != w * h {
         return Err(format!("decoded {} texels for {w}x{h}", texels.len()));
     }
     Ok((w, h, texels))
+}
+
+/// The table that decodes an 8-bit code of each channel: `code / 255`, from sRGB unless raw.
+fn code_table(raw: bool) -> Box<[[f32; 256]; 3]> {
+    let value = |v: usize| if raw { v as f32 / 255.0 } else { srgb_to_linear(v as f32 / 255.0) };
+    let row: [f32; 256] = std::array::from_fn(value);
+    Box::new([row; 3])
 }
 
 /// Most bytes a PNG may decode to (a 16k × 16k RGBA image at 16 bits is 2 GiB).
@@ -221,6 +232,16 @@ fn load_png(path: &Path, wrap: Wrap, filter: Filter, raw: bool) -> crate::Result
     };
     let (w, h) = (info.width as usize, info.height as usize);
     let decode = |c: f32| if raw { c } else { srgb_to_linear(c) };
+    if bytes_per == 1 {
+        let mut codes = Vec::with_capacity(w * h);
+        for r in 0..h {
+            let row = &buf[r * info.line_size..r * info.line_size + w * channels];
+            codes.extend(row.chunks_exact(channels).map(|p| if channels < 3 { [p[0]; 3] } else { [p[0], p[1], p[2]] }));
+        }
+        drop(buf);
+        let texels = Texels::Coded { codes, table: code_table(raw) };
+        return Bitmap::with_texels(w, h, texels, wrap, filter).ok_or_else(|| err("the image has no pixels".into()));
+    }
     let lut: Vec<f32> = (0..256).map(|v| decode(v as f32 / 255.0)).collect();
     let value = |row: &[u8], k: usize| -> f32 {
         if bytes_per == 1 {
@@ -264,8 +285,9 @@ mod tests {
         write_png(&rgb, 2, 1, png::ColorType::Rgb, png::BitDepth::Eight, &[255, 0, 128, 0, 64, 255]);
         let b = Bitmap::load(&rgb, Wrap::Clamp, Filter::Nearest, false).unwrap();
         assert_eq!((b.width, b.height), (2, 1));
-        assert!((b.texels[0] - Vec3A::new(1.0, 0.0, srgb_to_linear(128.0 / 255.0))).abs().max_element() < 1e-6);
-        assert!((b.texels[1] - Vec3A::new(0.0, srgb_to_linear(64.0 / 255.0), 1.0)).abs().max_element() < 1e-6);
+        assert!(matches!(b.texels, Texels::Coded { .. }), "8-bit images are stored coded");
+        assert!((b.texels.get(0) - Vec3A::new(1.0, 0.0, srgb_to_linear(128.0 / 255.0))).abs().max_element() < 1e-6);
+        assert!((b.texels.get(1) - Vec3A::new(0.0, srgb_to_linear(64.0 / 255.0), 1.0)).abs().max_element() < 1e-6);
         let grey16 = dir.join("grey16.png");
         write_png(
             &grey16,
@@ -276,8 +298,8 @@ mod tests {
             &[0x80, 0x00, 0xff, 0xff, 0xff, 0xff, 0x00, 0x00],
         );
         let g = Bitmap::load(&grey16, Wrap::Clamp, Filter::Nearest, false).unwrap();
-        assert!((g.texels[0] - Vec3A::splat(srgb_to_linear(32768.0 / 65535.0))).abs().max_element() < 1e-6);
-        assert_eq!(g.texels[1], Vec3A::ONE);
+        assert!((g.texels.get(0) - Vec3A::splat(srgb_to_linear(32768.0 / 65535.0))).abs().max_element() < 1e-6);
+        assert_eq!(g.texels.get(1), Vec3A::ONE);
         // Not a PNG, missing, unknown extension: errors that name the file.
         let junk = dir.join("junk.png");
         std::fs::write(&junk, b"not a png at all").unwrap();

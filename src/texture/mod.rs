@@ -37,9 +37,103 @@ pub struct Bitmap {
     pub width: usize,
     pub height: usize,
     /// Row-major, row 0 at the top.
-    pub texels: Vec<Vec3A>,
+    pub texels: Texels,
     pub wrap: Wrap,
     pub filter: Filter,
+}
+
+/// A bitmap's texels: linear values, or (images of 8 bits per channel) each channel's 8-bit
+/// code with the table that decodes it. Codes take 3 bytes a texel rather than 16, and give
+/// the values the table would have stored, bit for bit.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Texels {
+    Linear(Vec<Vec3A>),
+    Coded { codes: Vec<[u8; 3]>, table: Box<[[f32; 256]; 3]> },
+}
+
+impl Texels {
+    /// How many texels.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        match self {
+            Self::Linear(t) => t.len(),
+            Self::Coded { codes, .. } => codes.len(),
+        }
+    }
+
+    /// Whether there are none.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Texel `k`, row-major.
+    #[inline]
+    #[must_use]
+    pub fn get(&self, k: usize) -> Vec3A {
+        match self {
+            Self::Linear(t) => t[k],
+            Self::Coded { codes, table } => {
+                let [r, g, b] = codes[k];
+                Vec3A::new(table[0][r as usize], table[1][g as usize], table[2][b as usize])
+            }
+        }
+    }
+
+    /// Every texel's value, row-major.
+    pub fn values(&self) -> impl Iterator<Item = Vec3A> + '_ {
+        (0..self.len()).map(|k| self.get(k))
+    }
+
+    /// The values of texels `range` (a chunk for digests computed in parallel).
+    pub fn values_in(&self, range: std::ops::Range<usize>) -> impl Iterator<Item = Vec3A> + '_ {
+        range.map(|k| self.get(k))
+    }
+
+    /// Replaces each value `v` by `f(v)`; `f` must act on each channel alone (a scale, an
+    /// inversion), so that coded texels change their tables, not their codes.
+    pub fn map_channels(&mut self, f: impl Fn(Vec3A) -> Vec3A) {
+        match self {
+            Self::Linear(t) => t.iter_mut().for_each(|v| *v = f(*v)),
+            Self::Coded { table, .. } => {
+                for k in 0..256 {
+                    let v = f(Vec3A::new(table[0][k], table[1][k], table[2][k]));
+                    (table[0][k], table[1][k], table[2][k]) = (v.x, v.y, v.z);
+                }
+            }
+        }
+    }
+
+    /// Whether every value is finite and non-negative (for coded texels, every table entry).
+    #[must_use]
+    pub fn all_finite_non_negative(&self) -> bool {
+        let ok = |x: f32| x.is_finite() && x >= 0.0;
+        match self {
+            Self::Linear(t) => t.iter().all(|v| v.is_finite() && v.min_element() >= 0.0),
+            Self::Coded { table, .. } => table.iter().flatten().all(|&x| ok(x)),
+        }
+    }
+
+    /// The values, row-major.
+    #[must_use]
+    pub fn into_linear(self) -> Vec<Vec3A> {
+        match self {
+            Self::Linear(t) => t,
+            coded @ Self::Coded { .. } => coded.values().collect(),
+        }
+    }
+
+    fn swap_rows(&mut self, a: usize, b: usize, width: usize) {
+        fn swap<T>(v: &mut [T], a: usize, b: usize, w: usize) {
+            let (lo, hi) = (a.min(b), a.max(b));
+            let (top, bottom) = v.split_at_mut(hi * w);
+            top[lo * w..(lo + 1) * w].swap_with_slice(&mut bottom[..w]);
+        }
+        match self {
+            Self::Linear(t) => swap(t, a, b, width),
+            Self::Coded { codes, .. } => swap(codes, a, b, width),
+        }
+    }
 }
 
 /// A texture, dispatched statically (no trait object per lookup).
@@ -81,7 +175,7 @@ impl Texture {
             Self::Constant(c) => *c,
             Self::Checkerboard { a, b, .. } => (*a + *b) * 0.5,
             Self::Bitmap(b) => {
-                let sum: glam::DVec3 = b.texels.iter().map(|t| glam::Vec3::from(*t).as_dvec3()).sum();
+                let sum: glam::DVec3 = b.texels.values().map(|t| glam::Vec3::from(t).as_dvec3()).sum();
                 (sum / b.texels.len() as f64).as_vec3().into()
             }
         }
@@ -99,6 +193,13 @@ impl Bitmap {
     /// A `width × height` bitmap; `None` unless the texel count matches and is non-zero.
     #[must_use]
     pub fn new(width: usize, height: usize, texels: Vec<Vec3A>, wrap: Wrap, filter: Filter) -> Option<Self> {
+        Self::with_texels(width, height, Texels::Linear(texels), wrap, filter)
+    }
+
+    /// A `width × height` bitmap of texels stored either way; `None` unless the texel count
+    /// matches and is non-zero.
+    #[must_use]
+    pub fn with_texels(width: usize, height: usize, texels: Texels, wrap: Wrap, filter: Filter) -> Option<Self> {
         (width > 0 && height > 0 && texels.len() == width * height).then_some(Self {
             width,
             height,
@@ -111,22 +212,20 @@ impl Bitmap {
     /// The image upside down: a bitmap read with `v = 0` at its *top* row (Mitsuba's
     /// convention) is ours of the flipped image.
     pub fn flip_rows(&mut self) {
-        let w = self.width;
         for j in 0..self.height / 2 {
-            let (top, bottom) = self.texels.split_at_mut((self.height - 1 - j) * w);
-            top[j * w..(j + 1) * w].swap_with_slice(&mut bottom[..w]);
+            self.texels.swap_rows(j, self.height - 1 - j, self.width);
         }
     }
 
-    /// Width, height and the texels, row-major from the top row.
+    /// Width, height and the texels' values, row-major from the top row.
     #[must_use]
     pub fn into_texels(self) -> (usize, usize, Vec<Vec3A>) {
-        (self.width, self.height, self.texels)
+        (self.width, self.height, self.texels.into_linear())
     }
 
-    /// Texel `(i, j)` (column, row from the top) after wrapping each index.
+    /// The index of texel `(i, j)` (column, row from the top) after wrapping each index.
     #[inline]
-    fn texel(&self, i: i64, j: i64) -> Vec3A {
+    fn index(&self, i: i64, j: i64) -> usize {
         let wrap = |k: i64, n: usize| -> usize {
             let n = n as i64;
             let k = match self.wrap {
@@ -139,27 +238,40 @@ impl Bitmap {
             };
             k as usize
         };
-        self.texels[wrap(j, self.height) * self.width + wrap(i, self.width)]
+        wrap(j, self.height) * self.width + wrap(i, self.width)
     }
 
     /// The value at texture coordinates `uv`.
     #[must_use]
     pub fn eval(&self, uv: Vec2) -> Vec3A {
+        // One match on the storage per lookup, not one per texel read.
+        match &self.texels {
+            Texels::Linear(t) => self.filtered(uv, |k| t[k]),
+            Texels::Coded { codes, table } => self.filtered(uv, |k| {
+                let [r, g, b] = codes[k];
+                Vec3A::new(table[0][r as usize], table[1][g as usize], table[2][b as usize])
+            }),
+        }
+    }
+
+    #[inline]
+    fn filtered(&self, uv: Vec2, texel: impl Fn(usize) -> Vec3A) -> Vec3A {
         if !uv.is_finite() {
             return Vec3A::ZERO;
         }
+        let at = |i: i64, j: i64| texel(self.index(i, j));
         // Continuous texel coordinates: x across, y down from the top row.
         let x = f64::from(uv.x) * self.width as f64;
         let y = (1.0 - f64::from(uv.y)) * self.height as f64;
         match self.filter {
-            Filter::Nearest => self.texel(x.floor() as i64, y.floor() as i64),
+            Filter::Nearest => at(x.floor() as i64, y.floor() as i64),
             Filter::Bilinear => {
                 let (x, y) = (x - 0.5, y - 0.5);
                 let (x0, y0) = (x.floor(), y.floor());
                 let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
                 let (i, j) = (x0 as i64, y0 as i64);
-                let top = self.texel(i, j) * (1.0 - fx) + self.texel(i + 1, j) * fx;
-                let bottom = self.texel(i, j + 1) * (1.0 - fx) + self.texel(i + 1, j + 1) * fx;
+                let top = at(i, j) * (1.0 - fx) + at(i + 1, j) * fx;
+                let bottom = at(i, j + 1) * (1.0 - fx) + at(i + 1, j + 1) * fx;
                 top * (1.0 - fy) + bottom * fy
             }
         }
@@ -185,7 +297,7 @@ mod tests {
         let b = grid();
         for j in 0..2 {
             for i in 0..3 {
-                let d = (b.eval(centre(i, j, &b)) - b.texels[j * 3 + i]).abs().max_element();
+                let d = (b.eval(centre(i, j, &b)) - b.texels.get(j * 3 + i)).abs().max_element();
                 assert!(d < 1e-5, "texel {i},{j}: off by {d}");
             }
         }
@@ -239,5 +351,35 @@ mod tests {
         // 128/255 decodes to 0.2158605 (the sRGB standard's curve).
         assert!((srgb_to_linear(128.0 / 255.0) - 0.215_860_5).abs() < 1e-6);
         assert!((srgb_to_linear(0.04) - 0.04 / 12.92).abs() < 1e-9);
+    }
+
+    /// Coded texels read, average, flip and scale exactly as the values they decode to.
+    #[test]
+    fn coded_texels_are_their_values() {
+        let (w, h) = (5, 4);
+        let codes: Vec<[u8; 3]> =
+            (0..w * h).map(|k| [(k * 13) as u8, (k * 7 + 100) as u8, (255 - k * 11) as u8]).collect();
+        let table: [f32; 256] = std::array::from_fn(|v| srgb_to_linear(v as f32 / 255.0));
+        let decoded = codes.iter().map(|c| Vec3A::from_array(c.map(|v| table[v as usize]))).collect();
+        let (coded, linear) = (Texels::Coded { codes, table: Box::new([table; 3]) }, Texels::Linear(decoded));
+        for wrap in [Wrap::Repeat, Wrap::Clamp, Wrap::Mirror] {
+            for filter in [Filter::Bilinear, Filter::Nearest] {
+                let mut a = Bitmap::with_texels(w, h, coded.clone(), wrap, filter).unwrap();
+                let mut b = Bitmap::with_texels(w, h, linear.clone(), wrap, filter).unwrap();
+                let scale = |v: Vec3A| (Vec3A::ONE - Vec3A::new(0.5, 2.0, 0.25) * v).max(Vec3A::ZERO);
+                a.texels.map_channels(scale);
+                b.texels.map_channels(scale);
+                a.flip_rows();
+                b.flip_rows();
+                assert!(matches!(a.texels, Texels::Coded { .. }), "coded texels stay coded");
+                for k in 0..200 {
+                    let uv = Vec2::new(k as f32 * 0.0173 - 0.4, k as f32 * 0.0311 - 1.2);
+                    assert_eq!(a.eval(uv).to_array().map(f32::to_bits), b.eval(uv).to_array().map(f32::to_bits));
+                }
+                let (ta, tb) = (Texture::Bitmap(a.clone()), Texture::Bitmap(b.clone()));
+                assert_eq!(ta.mean().to_array().map(f32::to_bits), tb.mean().to_array().map(f32::to_bits));
+                assert_eq!(a.into_texels(), b.into_texels());
+            }
+        }
     }
 }

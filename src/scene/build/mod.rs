@@ -212,7 +212,7 @@ fn textures_from(path: &Path, d: &SceneDescription) -> Result<Textures> {
                 if t.v_from_top == Some(true) {
                     bitmap.flip_rows();
                 }
-                if bitmap.texels.iter().any(|t| !t.is_finite() || t.min_element() < 0.0) {
+                if !bitmap.texels.all_finite_non_negative() {
                     return Err(Error::Image {
                         path: file,
                         message: "a texture must be finite and non-negative".into(),
@@ -230,7 +230,7 @@ fn textures_from(path: &Path, d: &SceneDescription) -> Result<Textures> {
                 let apply = |v: Vec3A| if invert { (Vec3A::ONE - f * v).max(Vec3A::ZERO) } else { f * v };
                 match texture {
                     Texture::Bitmap(mut b) => {
-                        b.texels.iter_mut().for_each(|t| *t = apply(*t));
+                        b.texels.map_channels(apply);
                         Texture::Bitmap(b)
                     }
                     Texture::Checkerboard { a, b, scale } => Texture::Checkerboard { a: apply(a), b: apply(b), scale },
@@ -349,16 +349,9 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
     // A texture's mean is a pass over all its texels: computed once, when a material asks.
     let means: Vec<std::sync::OnceLock<Vec3A>> = textures.iter().map(|_| std::sync::OnceLock::new()).collect();
     let mean_of = |t: u16| *means[usize::from(t)].get_or_init(|| textures[usize::from(t)].mean());
-    // Independent of each other (a rough plastic's coat table is a few ms of quadrature):
-    // built in parallel, kept in the materials' order, the first error in that order reported.
-    let built: Vec<Result<_>> = {
-        use rayon::prelude::*;
-        let list: Vec<_> = d.materials.iter().collect();
-        list.into_par_iter().map(|(name, m)| material_from(path, name, m, &texture_ids, mean_of)).collect()
-    };
-    for ((name, _), material) in d.materials.iter().zip(built) {
+    for (name, m) in &d.materials {
         meshes.by_name.insert(name.clone(), meshes.materials.len() as u32);
-        meshes.materials.push(material?);
+        meshes.materials.push(material_from(path, name, m, &texture_ids, mean_of)?);
     }
 
     let mut sources = Vec::new();
