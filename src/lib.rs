@@ -2,6 +2,26 @@
 //!
 //! A CPU renderer whose ray-tracing backend is chosen at run time and whose integrators are
 //! generic over that backend. See `docs/cli.md` for the command line and `docs/scene-format.md` for the scene format.
+//!
+//! Rendering a scene from Rust: load it (TOML, Mitsuba 3 XML or pbrt-v4), build a backend over
+//! its triangles, and render with an integrator.
+//!
+//! ```
+//! use zvidpt::accel::BvhAccel;
+//! use zvidpt::integrator::path::PathTracer;
+//! use zvidpt::render::{RenderSettings, render};
+//! use zvidpt::scene::Scene;
+//!
+//! let mut scene = Scene::load("scenes/cornell-paper/scene.toml")?;
+//! scene.set_resolution(32, 24)?;
+//! let accel = BvhAccel::build(&scene.triangles);
+//! let settings = RenderSettings { spp: Some(4), seed: 1, ..RenderSettings::default() };
+//! let (image, stats) = render(&scene, &accel, &mut PathTracer::default(), &settings)?;
+//! let [r, g, b] = image.mean();
+//! assert!(r > 0.0 && g > 0.0 && b > 0.0, "the lit box is not black");
+//! assert_eq!(stats.spp, 4);
+//! # Ok::<(), zvidpt::Error>(())
+//! ```
 // The only unsafe code lives in `accel::embree` (feature `embree`); everywhere else it is
 // forbidden. `forbid` cannot be relaxed by a child module, hence `deny` when Embree is built.
 #![cfg_attr(not(feature = "embree"), forbid(unsafe_code))]

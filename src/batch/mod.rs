@@ -31,6 +31,8 @@
 //!
 //! The renderer itself is reached through [`Runner`], so that this module holds the batch
 //! logic and the command line only wires it to `zvidpt render`.
+// The library's entry points: every public item documented (`cargo doc`).
+#![warn(missing_docs)]
 pub mod slurm;
 
 use crate::{Error, Result};
@@ -75,9 +77,13 @@ impl Job {
 /// What a finished render reports.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Outcome {
+    /// Wall-clock seconds of the render.
     pub seconds: f64,
+    /// Samples per pixel rendered.
     pub spp: u32,
+    /// Camera samples per second.
     pub samples_per_second: f64,
+    /// Rays traced per second.
     pub rays_per_second: f64,
 }
 
@@ -97,13 +103,16 @@ pub trait Runner: Sync {
 /// How a job ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Status {
+    /// It rendered and wrote its output.
     Rendered,
     /// Its output already held this render.
     Skipped,
+    /// It stopped with an error.
     Failed,
 }
 
 impl Status {
+    /// The status as the summary writes it.
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
@@ -117,11 +126,15 @@ impl Status {
 /// One line of the summary.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Report {
+    /// The job.
     pub job: Job,
+    /// How it ended.
     pub status: Status,
     /// Wall-clock seconds of the whole job (render, outputs, MSE).
     pub wall_seconds: f64,
+    /// What its render reported, if it rendered.
     pub outcome: Option<Outcome>,
+    /// Its MSE against the job's reference, if it has one.
     pub mse: Option<f64>,
     /// The error's one line, for a failed job (or a failed MSE of a rendered one).
     pub error: Option<String>,

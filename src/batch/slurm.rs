@@ -32,7 +32,12 @@ pub struct SlurmOptions {
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Split {
     /// Sample ranges of an `spp`-sample render, one per task, then a merge.
-    Samples { spp: u32, tasks: u32 },
+    Samples {
+        /// Samples per pixel of the whole render.
+        spp: u32,
+        /// Array tasks, each a contiguous range of the samples.
+        tasks: u32,
+    },
     /// One task renders the whole job (time budget or AOVs).
     Whole,
 }
@@ -163,6 +168,7 @@ pub struct Submitted {
     pub render: String,
     /// The merge job, for a split render.
     pub merge: Option<String>,
+    /// How the job was split into tasks.
     pub split: Split,
 }
 
@@ -284,6 +290,7 @@ pub struct Progress {
     /// Samples per pixel done (in finished parts and checkpoints), and the total (`None`
     /// for a time budget).
     pub spp_done: u32,
+    /// Samples per pixel the job renders in all (`None` for a time budget).
     pub spp_total: Option<u32>,
     /// Parts finished, of all (split jobs).
     pub parts: Option<(u32, u32)>,

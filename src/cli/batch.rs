@@ -3,6 +3,8 @@
 use super::*;
 use crate::batch::{self, BatchOptions, Job, Outcome, Report, Runner, Status, slurm};
 
+// The flags' doc comments are their `--help` text, where TOML table names are not links.
+#[allow(rustdoc::broken_intra_doc_links)]
 #[derive(Debug, Args)]
 pub struct BatchArgs {
     /// The job file (TOML: [defaults], [[job]] tables, [[matrix]] tables; docs/batch.md).

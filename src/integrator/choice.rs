@@ -23,11 +23,25 @@ pub enum IntegratorKind {
 #[derive(Clone, Debug)]
 pub enum IntegratorSettings {
     /// `path`.
-    Path { mis: Mis },
+    Path {
+        /// Which lights NEE weighs against BSDF sampling.
+        mis: Mis,
+    },
     /// `jensen` with the photon grid.
     Jensen(GuideSettings),
     /// The paper's ZVIDPT (`zvidpt-terminal`, `zvidpt-collision`).
-    Paper { estimator: Estimator, guide: GuideSettings, pixel_grid: GridShape, q_max: f32, q_kappa: f32 },
+    Paper {
+        /// Terminal or collision.
+        estimator: Estimator,
+        /// The photon guide's settings.
+        guide: GuideSettings,
+        /// The pixel grid `Gp`.
+        pixel_grid: GridShape,
+        /// Largest termination probability.
+        q_max: f32,
+        /// `κ` of the termination probability.
+        q_kappa: f32,
+    },
     /// The learned walk: `zvidpt`, or `jensen --learned-guide on` (albedo roulette).
     Learned(LearnedSettings),
 }

@@ -12,9 +12,14 @@ use crate::geometry::{UVec2, Vec3A};
 use crate::photon::GuidePhotons;
 use crate::sampler::SampleStream;
 
+/// Jensen's photon-guided path tracer: directions at diffuse vertices drawn from the photon
+/// grid of the nearest guide record, Russian roulette by albedo.
 pub struct Jensen {
+    /// The guide's settings (photons, grid, records).
     pub settings: GuideSettings,
+    /// Bounces before Russian roulette starts.
     pub rr_depth: u32,
+    /// The guide the pre-pass built.
     pub guide: Option<PhotonGuide>,
 }
 

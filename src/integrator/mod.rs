@@ -1,6 +1,8 @@
 //! Integrators behind one trait, generic over the backend. An integrator picks its own film
 //! point inside the pixel (ZVIDPT importance-samples subpixels) and may keep per-pixel state
 //! built once before the pixel's first sample, and may run a pre-pass (the photon map).
+// The library's entry points: every public item documented (`cargo doc`).
+#![warn(missing_docs)]
 mod choice;
 mod jensen;
 pub mod mixture;
@@ -24,12 +26,16 @@ use crate::scene::{LightSampling, Scene, SurfaceInteraction};
 
 /// What an integrator sees while rendering.
 pub struct RenderContext<'a, A: Accel> {
+    /// The scene rendered.
     pub scene: &'a Scene,
+    /// Its ray-tracing backend.
     pub accel: &'a A,
+    /// How next event estimation picks points on emitters.
     pub light_sampling: LightSampling,
     /// When the render started (before the pre-pass) and its time budget, if any: an
     /// integrator that trains in its pre-pass takes its share of the budget from these.
     pub start: std::time::Instant,
+    /// The render's time budget in seconds, if it has one.
     pub time_limit: Option<f64>,
     /// The final sample count asked for, if any.
     pub spp: Option<u32>,
@@ -48,6 +54,7 @@ pub struct RenderContext<'a, A: Accel> {
 /// and no allocation in the sample loop (pbrt's per-thread scratch).
 #[derive(Clone, Debug, Default)]
 pub struct Scratch {
+    /// Rays traced.
     pub rays: u64,
     /// Samples that came out NaN or infinite (dropped; reported after the render).
     pub non_finite: u64,
@@ -55,10 +62,13 @@ pub struct Scratch {
     pub grid: Vec<f32>,
 }
 
+/// A light-transport estimator: one unbiased sample of a pixel's radiance at a time, generic
+/// over the backend (no dynamic dispatch per ray).
 pub trait Integrator: Sync + Send {
     /// State kept per pixel across passes (`()` when there is none).
     type PixelState: Send + Sync;
 
+    /// The name the command line gives it.
     fn name(&self) -> &'static str;
 
     /// The pre-pass (the photon map), run once before any pixel; returns a line describing
@@ -112,9 +122,13 @@ pub trait Integrator: Sync + Send {
 /// then counted, as NEE cannot reach it).
 #[derive(Clone, Copy, Debug)]
 pub struct Scatter {
+    /// The world direction.
     pub dir: Vec3A,
+    /// `f·|cos θ|/pdf`.
     pub weight: Vec3A,
+    /// The density, per solid angle.
     pub pdf: f32,
+    /// Whether a delta lobe was taken.
     pub delta: bool,
 }
 
@@ -147,6 +161,7 @@ pub fn sample_bsdf(si: &SurfaceInteraction, frame: &Frame, wi: Vec3A, rng: &mut 
 pub struct MisAt {
     /// Emitting surfaces.
     pub surfaces: bool,
+    /// The environment.
     pub environment: bool,
 }
 

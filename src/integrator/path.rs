@@ -12,10 +12,13 @@ use crate::geometry::{Frame, UVec2, Vec3A};
 use crate::sampler::{SampleStream, survival_probability};
 use crate::scene::SurfaceInteraction;
 
+/// A unidirectional path tracer with next event estimation, weighed against BSDF sampling by
+/// multiple importance sampling as `mis` says.
 #[derive(Clone, Debug)]
 pub struct PathTracer {
     /// Bounces before Russian roulette starts.
     pub rr_depth: u32,
+    /// Which lights NEE weighs against BSDF sampling.
     pub mis: Mis,
 }
 

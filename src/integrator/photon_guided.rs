@@ -55,9 +55,13 @@ impl Default for GuideSettings {
 /// Pre-pass measurements, for the summary line and the closing figures.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct PrepassReport {
+    /// Photons stored.
     pub photons: usize,
+    /// Photon paths emitted.
     pub emitted: u64,
+    /// Seconds of photon tracing.
     pub photon_seconds: f64,
+    /// Guide records built.
     pub records: usize,
     /// The records' k-nearest queries and grids.
     pub knn_seconds: f64,
@@ -82,22 +86,30 @@ impl std::fmt::Display for PrepassReport {
     }
 }
 
+/// The photon map and the guide records built from it: the approximate radiance field the
+/// photon-guided integrators sample directions from.
 pub struct PhotonGuide {
+    /// What the guide was built with.
     pub settings: GuideSettings,
+    /// The photons.
     pub map: PhotonMap,
     cache: Option<GuideCache>,
     /// The grid used where nothing is known: uniform, i.e. cosine sampling.
     uniform_cdf: Vec<f32>,
+    /// What the pre-pass measured.
     pub report: PrepassReport,
 }
 
 /// `L̃r`-side estimates and the grid to sample at one vertex.
 pub struct VertexGuide<'a> {
+    /// The photons' flux density near the vertex, for the `L̃r` estimates.
     pub density: FluxDensity,
+    /// The cumulative distribution of the grid to sample directions from.
     pub cdf: &'a [f32],
 }
 
 impl PhotonGuide {
+    /// Traces the photons of `settings` (seeded by `seed`) and builds the guide records.
     pub fn build<A: Accel>(scene: &Scene, accel: &A, settings: &GuideSettings, seed: u64) -> Result<PhotonGuide> {
         let t = Instant::now();
         let map = PhotonMap::build(scene, accel, settings.photons, seed)?;

@@ -51,6 +51,7 @@ pub enum Roulette {
 pub struct LearnedSettings {
     /// Photons seeding the guide (the paper's first pass) and photons per seed estimate.
     pub photons: usize,
+    /// Photons in each seed estimate's k-nearest search.
     pub knn: usize,
     /// Samples a guide cell must receive in an iteration to be split (× √2 per iteration;
     /// PPG's c).
@@ -71,6 +72,7 @@ pub struct LearnedSettings {
     /// 15–17% against 0; 0.75 matched 0 and 1 was 25% worse (early iterations' outliers
     /// persist).
     pub guide_carry: f32,
+    /// How the walk ends and splits (the weight window, or albedo roulette).
     pub roulette: Roulette,
     /// Weight-window width `s`: no action while the expected contribution ratio lies in
     /// `[2/(1+s), 2s/(1+s)]`.
@@ -135,13 +137,21 @@ impl Default for LearnedSettings {
 /// One training iteration, as reported.
 #[derive(Clone, Copy, Debug)]
 pub struct Iteration {
+    /// Samples per pixel it took.
     pub spp: u32,
+    /// Seconds it took.
     pub seconds: f64,
 }
 
+/// The learned zero-variance walk (`zvidpt`, and `jensen --learned-guide on`): a guide learned
+/// over training iterations from the photon map onwards drives directions, roulette and
+/// splitting; it renders with the path tracer instead where training measured that it loses.
 pub struct LearnedZvidpt {
+    /// How it learns and walks.
     pub settings: LearnedSettings,
+    /// The guide the training learned.
     pub guide: Option<LearnedGuide>,
+    /// The training iterations, in order.
     pub iterations: Vec<Iteration>,
     /// The training iterations' samples (those of at least 2 spp), which the image includes.
     prior: Option<PriorSamples>,
@@ -167,9 +177,11 @@ pub struct Choice {
     /// Variance × rays per sample: the path probe's, the learned walk's last measured (its
     /// rays weighed).
     pub path: f64,
+    /// The same for the learned walk.
     pub learned: f64,
     /// Training samples per pixel before the probe.
     pub after_spp: u32,
+    /// Whether the path tracer renders the rest.
     pub fell_back: bool,
 }
 
@@ -207,6 +219,7 @@ fn defensive_shares(alpha: f32, beta: f32, defensive: f32) -> (f32, f32) {
 const SETUP_RAYS: u32 = 4;
 
 impl LearnedZvidpt {
+    /// An integrator that has not trained yet (its pre-pass trains).
     #[must_use]
     pub fn new(settings: LearnedSettings) -> Self {
         Self { settings, guide: None, iterations: Vec::new(), prior: None, choice: None, path: None }

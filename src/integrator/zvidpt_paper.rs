@@ -22,27 +22,38 @@ use crate::scene::SurfaceInteraction;
 /// Most subpixels a pixel grid may have (the per-pixel state is a fixed array).
 pub const MAX_SUBPIXELS: usize = 32;
 
+/// Which of the paper's estimators a walk scores.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Estimator {
+    /// The terminal estimator: a walk scores the emission where it ends.
     Terminal,
+    /// The collision estimator: a walk scores at every vertex.
     Collision,
 }
 
+/// The paper's ZVIDPT, as ALGORITHM.md states it: pixels, directions and termination drawn
+/// in proportion to the photon map's estimates of the radiance they lead to.
 pub struct Zvidpt {
+    /// Terminal or collision.
     pub estimator: Estimator,
+    /// The photon guide's settings.
     pub settings: GuideSettings,
     /// The pixel grid `Gp` (paper: 2×4).
     pub pixel_grid: GridShape,
     /// `ε_p`: subpixel values are floored at this fraction of their mean.
     pub pixel_floor: f32,
+    /// Smallest termination probability `q`.
     pub q_min: f32,
+    /// Largest termination probability `q`.
     pub q_max: f32,
     /// `κ` of [`termination_probability`] (1: ALGORITHM.md's `q = L̃1/L̃r`).
     pub q_kappa: f32,
+    /// The guide the pre-pass built.
     pub guide: Option<PhotonGuide>,
 }
 
 impl Zvidpt {
+    /// The paper's configuration for `estimator` with a guide of `settings`.
     #[must_use]
     pub fn new(estimator: Estimator, settings: GuideSettings) -> Self {
         Self {

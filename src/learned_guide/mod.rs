@@ -258,7 +258,7 @@ pub struct LearnedGuide {
 /// weighted `g/(α·p_tree + (1−α)·p_cos)`; its second moment under any `α` is estimated from
 /// the same samples by `g²/(p_α·p)`). In the furnace, where cosine sampling is exact, cells
 /// choose 0; where light comes from a small bright patch, 0.75 or 0.9. The last candidate is
-/// open only to cells whose moments come from at least [`MIN_HIGH_MIX_SAMPLES`] directions:
+/// open only to cells whose moments come from at least `MIN_HIGH_MIX_SAMPLES` directions:
 /// with a guide learned from one training spp, cells that chose 0.9 left 10% to cosine
 /// sampling and their samples were heavy-tailed, failing the path-reference z-test at 5.6 at
 /// two seeds. Gated, it lowers cornell-paper's MSE at 32 spp by 5–10% (0.0173/0.0159 against
@@ -279,7 +279,7 @@ const MIN_MIX_SAMPLES: u64 = 64;
 
 impl LearnedGuide {
     /// The first guide, from the photon map: space split until a cell holds about
-    /// [`PHOTONS_PER_CELL`] photons, directions from the indirect photons in each cell,
+    /// `PHOTONS_PER_CELL` photons, directions from the indirect photons in each cell,
     /// estimates from the `knn` photons nearest each cell's photons' centre.
     pub fn seed(scene: &Scene, map: &PhotonMap, knn: usize) -> crate::Result<Self> {
         let (mut lo, mut hi) = (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY));

@@ -26,7 +26,7 @@ pub struct Aovs {
 /// One pixel's albedo, normal and depth.
 type PixelAov = ([f32; 3], [f32; 3], f32);
 
-/// Traces [`GRID`]² camera rays per pixel of `scene` through `accel`.
+/// Traces `GRID`² camera rays per pixel of `scene` through `accel`.
 #[must_use]
 pub fn first_hit_aovs<A: Accel>(scene: &Scene, accel: &A, seed: u64) -> Aovs {
     let (width, height) = (scene.camera.width, scene.camera.height);

@@ -25,6 +25,7 @@ const TRAINING: &str = "training_iterations";
 /// How a render keeps a checkpoint.
 #[derive(Clone, Debug)]
 pub struct CheckpointSettings {
+    /// The checkpoint file.
     pub path: PathBuf,
     /// Seconds between checkpoints (0: after every pass).
     pub interval: f64,
@@ -38,9 +39,11 @@ pub struct CheckpointSettings {
 /// A checkpoint read back.
 #[derive(Clone, Debug)]
 pub struct Resume {
+    /// The sums rendered so far.
     pub part: Partial,
     /// Seconds the render had run (a time budget continues with what is left).
     pub seconds: f64,
+    /// Training iterations the pre-pass ran, for a learning integrator to run again.
     pub training_iterations: Option<u32>,
 }
 

@@ -30,6 +30,7 @@ pub fn requested() -> Option<i32> {
 pub struct Watch(());
 
 impl Watch {
+    /// Registers a render that wants a checkpoint on interruption.
     #[must_use]
     pub fn new() -> Self {
         WATCHERS.fetch_add(1, Ordering::SeqCst);

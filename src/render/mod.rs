@@ -1,6 +1,8 @@
 //! The tiled scheduler: rayon over image tiles, whole passes of samples, a sample or time
 //! budget, and a progress bar. Each tile owns its accumulators and per-pixel state, so the
 //! sample loop takes no lock and allocates nothing.
+// The library's entry points: every public item documented (`cargo doc`).
+#![warn(missing_docs)]
 pub mod aov;
 pub mod checkpoint;
 pub mod interrupt;
@@ -29,6 +31,7 @@ pub struct RenderSettings {
     pub spp: Option<u32>,
     /// Seconds; the render stops after the first whole pass that ends past it.
     pub time_limit: Option<f64>,
+    /// Seed of every sample stream (the same seed gives the same pixels).
     pub seed: u64,
     /// Worker threads (`None`: one per core).
     pub threads: Option<usize>,
@@ -67,13 +70,17 @@ impl Default for RenderSettings {
 /// What a render measured.
 #[derive(Clone, Debug)]
 pub struct RenderStats {
+    /// Samples per pixel rendered (including any resumed).
     pub spp: u32,
     /// Wall-clock seconds of the whole render: pre-pass, pixel set-up and sampling.
     pub seconds: f64,
     /// Seconds of the pre-pass alone (the photon map), included in `seconds`.
     pub prepass_seconds: f64,
+    /// Camera samples taken.
     pub samples: u64,
+    /// Rays traced.
     pub rays: u64,
+    /// Worker threads used.
     pub threads: usize,
     /// What the pre-pass built, if the integrator has one.
     pub prepass: Option<String>,
@@ -90,6 +97,7 @@ pub struct RenderStats {
     pub resumed_seconds: f64,
     /// Checkpoints written during the render, and the seconds they took (in `seconds`).
     pub checkpoints: u32,
+    /// Seconds the checkpoints took.
     pub checkpoint_seconds: f64,
     /// Seconds the ray-tracing backend took to build its acceleration structure (set by the
     /// caller that built it; not in `seconds`).

@@ -5,12 +5,15 @@ use crate::geometry::{Ray, UVec2, Vec2, Vec3A};
 /// ray through film point `(u, v)` follows SCENES.md exactly.
 #[derive(Clone, Debug)]
 pub struct Camera {
+    /// Where the camera is.
     pub eye: Vec3A,
     forward: Vec3A,
     right: Vec3A,
     up: Vec3A,
     tan_half_fov: f32,
+    /// Rendered image width in pixels.
     pub width: u32,
+    /// Rendered image height in pixels.
     pub height: u32,
     /// The whole film's size and the rendered window's top-left corner in it (a crop): the
     /// image is `width`×`height` pixels of it.

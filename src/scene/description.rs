@@ -2,9 +2,11 @@
 use serde::Deserialize;
 use std::collections::BTreeMap;
 
+/// A TOML scene file (`docs/scene-format.md`), as read.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SceneDescription {
+    /// The camera.
     pub camera: CameraDescription,
     /// Materials by name. They override MTL materials of the same name and can be assigned to
     /// a whole mesh with `material = "name"`.
@@ -13,12 +15,16 @@ pub struct SceneDescription {
     /// Textures by name, for materials' `*_texture` keys.
     #[serde(default)]
     pub textures: BTreeMap<String, TextureDescription>,
+    /// Meshes read from OBJ or PLY files (`[[mesh]]`).
     #[serde(default, rename = "mesh")]
     pub meshes: Vec<MeshDescription>,
+    /// Canonical shapes (`[[shape]]`).
     #[serde(default, rename = "shape")]
     pub shapes: Vec<ShapeDescription>,
+    /// Point, spot and distant lights (`[[light]]`).
     #[serde(default, rename = "light")]
     pub lights: Vec<LightDescription>,
+    /// Light from infinitely far away.
     pub environment: Option<EnvironmentDescription>,
     /// What the scene asks of a render: the command line's flags win.
     pub render: Option<RenderDescription>,
@@ -33,13 +39,17 @@ pub struct SceneDescription {
 pub struct InlineMesh {
     /// Where it was written (`file:line`), for errors.
     pub origin: String,
+    /// Vertex positions.
     pub positions: Vec<[f32; 3]>,
     /// Three per triangle.
     pub indices: Vec<u32>,
     /// Per vertex, when given.
     pub normals: Option<Vec<[f32; 3]>>,
+    /// Texture coordinates per vertex, when given.
     pub uvs: Option<Vec<[f32; 2]>>,
+    /// The material's name.
     pub material: String,
+    /// Reverse every triangle's winding.
     pub reverse_winding: bool,
 }
 
@@ -58,8 +68,11 @@ pub struct RenderDescription {
 #[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
 pub enum LightKind {
+    /// Light from a point, in every direction.
     Point,
+    /// Light from a point, in a cone.
     Spot,
+    /// Parallel light from one direction.
     Distant,
 }
 
@@ -68,16 +81,20 @@ pub enum LightKind {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LightDescription {
+    /// Point, spot or distant.
     #[serde(rename = "type")]
     pub kind: LightKind,
     /// Point and spot lights.
     pub position: Option<[f32; 3]>,
+    /// Point and spot lights: power per steradian.
     pub intensity: Option<[f32; 3]>,
     /// Spot lights: the axis; distant lights: the direction the light travels in.
     pub direction: Option<[f32; 3]>,
     /// Distant lights: the irradiance on a surface facing the light.
     pub irradiance: Option<[f32; 3]>,
+    /// Spot lights: the cone's half-angle in degrees (default 20).
     pub cutoff: Option<f32>,
+    /// Spot lights: where the falloff begins, in degrees (default ¾ of `cutoff`).
     pub beam: Option<f32>,
 }
 
@@ -120,8 +137,11 @@ impl LightDescription {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EnvironmentDescription {
+    /// Constant radiance.
     pub radiance: Option<[f32; 3]>,
+    /// Or an image of it (relative to the scene file).
     pub map: Option<String>,
+    /// A factor on either (default 1).
     pub scale: Option<f32>,
     /// How the map's image covers the sphere: `equirectangular` (the default, as above) or
     /// `equal_area` (pbrt-v4's octahedral equal-area square, +z up).
@@ -138,7 +158,9 @@ pub struct EnvironmentDescription {
 #[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
 pub enum EnvLookupDescription {
+    /// The texel the direction falls in.
     Nearest,
+    /// As Mitsuba 3 interpolates it.
     Mitsuba,
 }
 
@@ -146,7 +168,9 @@ pub enum EnvLookupDescription {
 #[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
 #[serde(rename_all = "snake_case")]
 pub enum MapLayout {
+    /// Longitude across, latitude down.
     Equirectangular,
+    /// pbrt-v4's square equal-area octahedral map.
     EqualArea,
 }
 
@@ -154,13 +178,18 @@ pub enum MapLayout {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CameraDescription {
+    /// Where the camera is.
     pub eye: [f32; 3],
+    /// The point it looks at.
     pub look_at: [f32; 3],
+    /// Which way is up (default +y).
     #[serde(default = "default_up")]
     pub up: [f32; 3],
     /// Vertical field of view in degrees.
     pub fov_y: f32,
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
     /// Render only this window of the `width`×`height` film: `[x, y, width, height]` in
     /// pixels from the top left (Mitsuba's `crop_offset_x`, … ).
@@ -179,9 +208,12 @@ pub struct CameraDescription {
 #[derive(Debug, Deserialize, Clone, Copy, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct PixelFilterDescription {
+    /// The filter's shape.
     #[serde(rename = "type")]
     pub kind: PixelFilterKind,
+    /// Gaussian: the standard deviation in pixels.
     pub stddev: Option<f32>,
+    /// Radius per axis, in pixels.
     pub radius: Option<[f32; 2]>,
 }
 
@@ -189,8 +221,11 @@ pub struct PixelFilterDescription {
 #[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
 pub enum PixelFilterKind {
+    /// Constant.
     Box,
+    /// A truncated Gaussian.
     Gaussian,
+    /// Linear falloff.
     Tent,
 }
 
@@ -202,11 +237,16 @@ fn default_up() -> [f32; 3] {
 #[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum MaterialKind {
+    /// Lambertian.
     #[default]
     Diffuse,
+    /// A metal.
     Conductor,
+    /// Glass: reflection and refraction.
     Dielectric,
+    /// A thin sheet of glass (no refraction offset).
     ThinDielectric,
+    /// A diffuse base under a dielectric coat.
     Plastic,
 }
 
@@ -216,21 +256,26 @@ pub enum MaterialKind {
 #[derive(Debug, Deserialize, Clone, Default)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialDescription {
+    /// The scattering model (default diffuse).
     #[serde(default, rename = "type")]
     pub kind: MaterialKind,
     /// Diffuse reflectance (diffuse, plastic).
     #[serde(default)]
     pub diffuse: [f32; 3],
+    /// Emitted radiance, one-sided along the geometric normal.
     #[serde(default)]
     pub emission: [f32; 3],
     /// Conductor: a named metal (Mitsuba's names, e.g. "Au"), or `eta` and `k` per channel.
     pub metal: Option<String>,
+    /// Conductor: the index of refraction per channel.
     pub eta: Option<[f32; 3]>,
+    /// Conductor: the absorption coefficient per channel.
     pub k: Option<[f32; 3]>,
     /// Conductor: a tint on the reflectance (Mitsuba's `specular_reflectance`).
     pub specular: Option<[f32; 3]>,
     /// Dielectric, thin dielectric, plastic: interior and exterior index of refraction.
     pub ior: Option<f32>,
+    /// The exterior's index of refraction (default 1).
     pub exterior_ior: Option<f32>,
     /// Conductor, dielectric, plastic: microfacet roughness `α` (0 or absent: smooth).
     pub roughness: Option<f32>,
@@ -260,7 +305,9 @@ pub struct MaterialDescription {
 #[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
 pub enum DistributionDescription {
+    /// Trowbridge–Reitz (GGX).
     Ggx,
+    /// Beckmann.
     Beckmann,
 }
 
@@ -268,7 +315,9 @@ pub enum DistributionDescription {
 #[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
 pub enum MaskingDescription {
+    /// Height-correlated Smith masking–shadowing.
     Correlated,
+    /// Masking times shadowing.
     Separable,
 }
 
@@ -276,7 +325,9 @@ pub enum MaskingDescription {
 #[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
 pub enum TextureKind {
+    /// An image file.
     Bitmap,
+    /// Two colours in squares.
     Checkerboard,
 }
 
@@ -284,8 +335,11 @@ pub enum TextureKind {
 #[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
 pub enum WrapDescription {
+    /// The image tiles the plane.
     Repeat,
+    /// Every tile mirrors its neighbours.
     Mirror,
+    /// The edge texels extend for ever.
     Clamp,
 }
 
@@ -293,7 +347,9 @@ pub enum WrapDescription {
 #[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
 pub enum FilterDescription {
+    /// Interpolated between the four nearest texels.
     Bilinear,
+    /// The texel the point falls in.
     Nearest,
 }
 
@@ -303,14 +359,22 @@ pub enum FilterDescription {
 #[derive(Debug, Deserialize, Clone)]
 #[serde(deny_unknown_fields)]
 pub struct TextureDescription {
+    /// Bitmap or checkerboard.
     #[serde(rename = "type")]
     pub kind: TextureKind,
+    /// Bitmaps: the image file, relative to the scene file.
     pub file: Option<String>,
+    /// Bitmaps: what lies beyond `[0, 1]²` (default repeat).
     pub wrap: Option<WrapDescription>,
+    /// Bitmaps: how texels are interpolated (default bilinear).
     pub filter: Option<FilterDescription>,
+    /// Bitmaps: the values as stored, not decoded from sRGB (data such as roughness).
     pub raw: Option<bool>,
+    /// Checkerboards: the colour at the origin.
     pub color0: Option<[f32; 3]>,
+    /// Checkerboards: the other colour.
     pub color1: Option<[f32; 3]>,
+    /// Checkerboards: squares across `u` and `v`.
     pub scale: Option<[f32; 2]>,
     /// Bitmaps: `v = 0` is the image's top row (Mitsuba's convention), not its bottom.
     pub v_from_top: Option<bool>,
@@ -345,6 +409,7 @@ impl TextureDescription {
     }
 }
 
+/// A mesh read from a file (`[[mesh]]`).
 #[derive(Debug, Deserialize, Clone)]
 #[serde(deny_unknown_fields)]
 pub struct MeshDescription {
@@ -376,9 +441,13 @@ pub struct MeshDescription {
 #[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
 pub enum ShapeKind {
+    /// The square `[−1, 1]²` in the plane z = 0, facing +z.
     Rectangle,
+    /// The unit disk in the plane z = 0, facing +z.
     Disk,
+    /// The cube `[−1, 1]³`.
     Cube,
+    /// A sphere (`center`, `radius`).
     Sphere,
 }
 
@@ -386,7 +455,9 @@ pub enum ShapeKind {
 #[derive(Debug, Deserialize, Clone, Copy)]
 #[serde(deny_unknown_fields)]
 pub struct RotateDescription {
+    /// The axis.
     pub axis: [f32; 3],
+    /// Degrees, counter-clockwise looking down the axis.
     pub angle: f32,
 }
 
@@ -395,20 +466,26 @@ pub struct RotateDescription {
 #[derive(Debug, Deserialize, Clone)]
 #[serde(deny_unknown_fields)]
 pub struct ShapeDescription {
+    /// Which canonical shape.
     #[serde(rename = "type")]
     pub kind: ShapeKind,
     /// The shape's material (a name from `[materials]`).
     pub material: String,
     /// Sphere only: centre and radius (default the origin and 1), before the transform.
     pub center: Option<[f32; 3]>,
+    /// Sphere only: radius.
     pub radius: Option<f32>,
     /// Disk only: segments of the rim.
     pub segments: Option<u32>,
     /// Sphere only: subdivisions of the icosahedron.
     pub subdivisions: Option<u32>,
+    /// Scale per axis.
     pub scale: Option<[f32; 3]>,
+    /// Then a rotation.
     pub rotate: Option<RotateDescription>,
+    /// Then a translation.
     pub translate: Option<[f32; 3]>,
+    /// Or the whole placement as a matrix.
     pub matrix: Option<[[f32; 4]; 4]>,
     /// Reverse every triangle's winding, flipping geometric normals and emitting sides.
     #[serde(default)]

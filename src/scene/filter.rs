@@ -19,11 +19,22 @@ pub const FILTER_BINS: usize = 1024;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum FilterShape {
     /// Constant over `[−r, r]`.
-    Box { radius: [f32; 2] },
+    Box {
+        /// Half-width per axis.
+        radius: [f32; 2],
+    },
     /// `max(0, e^{−x²/2σ²} − e^{−r²/2σ²})` over `[−r, r]` (Mitsuba 3's and pbrt-v4's).
-    Gaussian { stddev: f32, radius: [f32; 2] },
+    Gaussian {
+        /// Standard deviation `σ`.
+        stddev: f32,
+        /// Truncation radius per axis.
+        radius: [f32; 2],
+    },
     /// `max(0, 1 − |x|/r)` (Mitsuba's `tent`, pbrt's `triangle`).
-    Tent { radius: [f32; 2] },
+    Tent {
+        /// Where it reaches 0, per axis.
+        radius: [f32; 2],
+    },
 }
 
 impl FilterShape {
@@ -113,6 +124,7 @@ impl Axis {
 /// A filter ready to sample: its shape and, unless it is the one-pixel box, its tables.
 #[derive(Clone, Debug)]
 pub struct PixelFilter {
+    /// The filter's shape.
     pub shape: FilterShape,
     tables: Option<Arc<[Axis; 2]>>,
 }

@@ -59,8 +59,11 @@ impl EmitterPlane {
 /// Lights that are not emitting surfaces.
 #[derive(Clone, Debug, Default)]
 pub struct Lights {
+    /// Point and spot lights.
     pub points: Vec<PointLight>,
+    /// Distant (directional) lights.
     pub distant: Vec<crate::light::DistantLight>,
+    /// The environment, if any.
     pub environment: Option<Environment>,
 }
 
@@ -98,9 +101,13 @@ pub struct DirectSample {
     /// The environment: `p` is then the unit direction towards it, and nothing is in the way
     /// unless a surface is.
     pub infinite: bool,
+    /// The point sampled (for the environment, the direction to it).
     pub p: Vec3A,
+    /// Bound on the error of `p`.
     pub p_err: Vec3A,
+    /// The emitter's geometric normal there.
     pub ng: Vec3A,
+    /// Radiance emitted towards the shading point.
     pub emission: Vec3A,
     /// `1/pdf(ω)` in steradians: `cosθy/(d²·pdf_area)` for area sampling, `Ω/P(triangle)` for
     /// solid-angle sampling.

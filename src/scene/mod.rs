@@ -1,5 +1,7 @@
 //! Scenes: triangles with diffuse materials and one-sided emitters, a pinhole camera, and the
 //! full shading record built once from a backend's preliminary [`Hit`].
+// The library's entry points: every public item documented (`cargo doc`).
+#![warn(missing_docs)]
 mod build;
 mod camera;
 pub mod description;
@@ -27,7 +29,9 @@ use std::path::PathBuf;
 /// into the hemisphere of its triangle's geometric normal).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Material {
+    /// How it scatters.
     pub bsdf: Bsdf,
+    /// Radiance emitted from its front side.
     pub emission: Vec3A,
     /// Opaque materials scatter on both sides (the TOML default, Mitsuba's `twosided`) or only
     /// on the side the geometric normal points to (Mitsuba's default: black from behind).
@@ -52,6 +56,7 @@ pub struct TextureSlots {
 }
 
 impl TextureSlots {
+    /// Whether any slot reads a texture.
     #[inline]
     #[must_use]
     pub fn any(&self) -> bool {
@@ -90,6 +95,7 @@ impl Material {
         }
     }
 
+    /// Whether it emits.
     #[inline]
     #[must_use]
     pub fn is_emitter(&self) -> bool {
@@ -119,14 +125,19 @@ impl Material {
 /// refer to this order.
 #[derive(Clone, Debug)]
 pub struct Scene {
+    /// The name shown in summaries (the scene file's folder).
     pub name: String,
     /// The scene file this came from.
     pub path: PathBuf,
+    /// The camera.
     pub camera: Camera,
+    /// Vertices of each triangle, in world space.
     pub triangles: Vec<[Vec3A; 3]>,
     /// Unit geometric normal `normalize((v1−v0)×(v2−v0))` per triangle.
     pub normals: Vec<Vec3A>,
+    /// Index into `materials` of each triangle.
     pub triangle_material: Vec<u32>,
+    /// The materials.
     pub materials: Vec<Material>,
     /// Shading normals and texture coordinates of the meshes that have them.
     pub attributes: Attributes,
@@ -154,6 +165,7 @@ pub struct Scene {
 /// The full shading record at a surface hit.
 #[derive(Clone, Copy, Debug)]
 pub struct SurfaceInteraction {
+    /// The hit point.
     pub p: Vec3A,
     /// Conservative bound on the absolute error of `p`.
     pub p_err: Vec3A,
@@ -171,6 +183,7 @@ pub struct SurfaceInteraction {
     pub shaded: bool,
     /// Unit direction towards where the ray came from.
     pub wo: Vec3A,
+    /// The triangle hit.
     pub prim: u32,
     /// The material with its textures read at this hit.
     pub material: Material,
@@ -438,6 +451,7 @@ impl Scene {
         Ok(())
     }
 
+    /// The material of triangle `prim`.
     #[inline]
     #[must_use]
     pub fn material_of(&self, prim: u32) -> &Material {

@@ -52,13 +52,13 @@ impl Scene {
         }
     }
 
-    /// A pbrt-v4 scene from the text of its file (see [`super::import::pbrt`]).
+    /// A pbrt-v4 scene from the text of its file (the subset read: `docs/import.md`).
     pub fn parse_pbrt(text: &str, path: &Path, options: &ImportOptions) -> Result<Scene> {
         let imported = super::import::pbrt::import(path, text, options)?;
         Scene::imported(path, imported.description, imported.warnings, imported.sources)
     }
 
-    /// A Mitsuba 3 scene from the text of its file (see [`super::import::mitsuba`]).
+    /// A Mitsuba 3 scene from the text of its file (the subset read: `docs/import.md`).
     pub fn parse_mitsuba(text: &str, path: &Path, options: &ImportOptions) -> Result<Scene> {
         let imported = super::import::mitsuba::import(path, text, options)?;
         Scene::imported(path, imported.description, imported.warnings, imported.sources)

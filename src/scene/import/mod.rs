@@ -90,12 +90,16 @@ pub struct ImportOptions {
 /// The formats a scene file can be in, by its extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
+    /// zvidpt's TOML (`.toml`).
     Toml,
+    /// Mitsuba 3 XML (`.xml`).
     Mitsuba,
+    /// pbrt-v4 (`.pbrt`).
     Pbrt,
 }
 
 impl Format {
+    /// The format of `path` by its extension (TOML unless `.xml` or `.pbrt`).
     #[must_use]
     pub fn of(path: &std::path::Path) -> Self {
         match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {

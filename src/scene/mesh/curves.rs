@@ -29,10 +29,13 @@ pub enum Sweep {
 /// A curve, in world space.
 #[derive(Clone, Debug)]
 pub struct Curve<'a> {
+    /// Control points.
     pub points: &'a [DVec3],
+    /// How the control points define the curve.
     pub basis: Basis,
     /// 2 or 3.
     pub degree: usize,
+    /// The surface swept along it.
     pub sweep: Sweep,
     /// Width at the curve's start and end (linear in between, over the segments).
     pub width: [f64; 2],
@@ -48,8 +51,11 @@ const MAX_STEPS: usize = 64;
 /// Triangles of tessellated curves (positions, per-vertex normals, three indices each).
 #[derive(Clone, Debug, Default)]
 pub struct CurveMesh {
+    /// Vertex positions.
     pub positions: Vec<[f32; 3]>,
+    /// Vertex normals.
     pub normals: Vec<[f32; 3]>,
+    /// Three vertex indices per triangle.
     pub indices: Vec<u32>,
 }
 

@@ -10,9 +10,11 @@ use ply_rs_bw::ply::{BeginList, ElementDef, Encoding, PropertyAccess, PropertyAc
 /// A mesh as the file lists it.
 #[derive(Debug, Default)]
 pub struct PlyMesh {
+    /// Vertex positions.
     pub positions: Vec<Vec3A>,
     /// One per vertex where the file gives them to every vertex.
     pub normals: Option<Vec<Vec3A>>,
+    /// Texture coordinates, where the file gives them to every vertex.
     pub uvs: Option<Vec<Vec2>>,
     /// Vertex indices of each face (unchecked: the caller checks them against `positions`).
     pub faces: Vec<Vec<i64>>,
