@@ -1,0 +1,238 @@
+#!/usr/bin/env python3
+"""Regenerates the results tables (run through scripts/results.sh, which builds the binary).
+
+    python3 scripts/results.py --zvidpt BIN (--quick | --full) [--bitterli COLLECTION]
+        [--out DIR] [--write]
+
+Three studies, each the source of one row of the README's headline table:
+
+1. cornell-paper (512x384): seconds each integrator needs to reach the MSE of a 256-spp path
+   image, learning included. A `zvidpt reference` (path), the target (`zvidpt converge
+   --integrators path --spp 256`), then `zvidpt converge --time-to-mse`. The reference's own
+   noise adds the same amount to every image's MSE and to the target, so the seconds to the
+   target do not depend on it in expectation; --quick therefore takes a 1024-spp reference,
+   and path's seconds to its own 256-spp error from the target runs themselves.
+2. cornell-mitsuba against Mitsuba 3 at equal time (peers/race.py; skipped without pip's
+   `mitsuba`).
+3. Bitterli's seven complete scenes at equal time (scripts/suite.py; skipped without
+   --bitterli or $BITTERLI, the collection's root folder).
+
+Writes DIR/results.md (default `results`): every table, each with the machine, thread count,
+commit and date it was measured on, and the headline table. --full (and --quick with --write)
+also rewrites the generated sections of docs/results.md (between `<!-- results: NAME -->`
+markers), docs/suite.png, and the README's headline table.
+"""
+import argparse
+import csv
+import datetime
+import math
+import os
+import platform
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+COMPLETE = ["coffee", "cornell-box", "hair-curl", "veach-bidir", "veach-mis", "volumetric-caustic", "water-caustic"]
+MODES = {
+    "quick": dict(ttm_ref=512, runs=2, race_time=10, race_seeds="1,2", race_ref=512, suite_time=8, suite_ref=256,
+                  suite_seeds="1,2", suite_integrators="path;zvidpt"),
+    "full": dict(ttm_ref=8192, runs=2, race_time=20, race_seeds="1,2", race_ref=4096, suite_time=8, suite_ref=16384,
+                 suite_seeds="1,2,3,4", suite_integrators="path;zvidpt;jensen --learned-guide on"),
+}
+
+
+def run(cmd, log):
+    """Runs `cmd`, its output appended to `log`; stops the script with its last lines on failure."""
+    print("$ " + " ".join(str(c) for c in cmd), flush=True)
+    with open(log, "a") as fh:
+        fh.write("$ " + " ".join(str(c) for c in cmd) + "\n")
+        fh.flush()
+        p = subprocess.run([str(c) for c in cmd], stdout=fh, stderr=subprocess.STDOUT, cwd=ROOT)
+    if p.returncode != 0:
+        tail = Path(log).read_text().splitlines()[-5:]
+        sys.exit(f"failed ({p.returncode}): {' '.join(str(c) for c in cmd)}\n" + "\n".join(tail))
+
+
+def machine():
+    cpu = platform.processor() or "unknown CPU"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=ROOT).stdout.strip()
+    dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True, text=True,
+                           cwd=ROOT).stdout.strip()
+    return dict(cpu=cpu, threads=os.cpu_count(), commit=commit + ("+changes" if dirty else ""),
+                date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"))
+
+
+def stamp(m, mode, seconds):
+    return (f"*Measured by `scripts/results.sh --{mode}` on {m['cpu']}, {m['threads']} threads, commit "
+            f"{m['commit']}, {m['date']} ({seconds:.0f} s).*")
+
+
+def read_csv(path):
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def cornell_paper(a, s, out, log):
+    """Seconds to the MSE of a 256-spp path image; returns (markdown, headline cells)."""
+    t0 = time.time()
+    d = out / "cornell-paper"
+    d.mkdir(parents=True, exist_ok=True)
+    ref = d / f"ref-{s['ttm_ref']}.exr"
+    if not ref.exists():
+        run([a.zvidpt, "reference", "--spp", s["ttm_ref"], "--seed", "0", "-o", ref], log)
+    run([a.zvidpt, "converge", "--reference", ref, "--integrators", "path", "--spp", "256", "--runs", s["runs"],
+         "--seed", "1", "-o", d / "target"], log)
+    target_rows = [r for r in read_csv(d / "target" / "converge.csv") if r["integrator"] == "path"]
+    target = float(target_rows[0]["mse"])
+    path_runs = [r for r in read_csv(d / "target" / "runs.csv") if r["integrator"] == "path"]
+    integrators = "zvidpt" if a.mode == "quick" else "path,zvidpt"
+    run([a.zvidpt, "converge", "--reference", ref, "--integrators", integrators, "--time-to-mse", f"{target:.6g}",
+         "--runs", s["runs"], "--seed", "1", "--max-spp", "1024", "-o", d / "ttm"], log)
+    ttm = read_csv(d / "ttm" / "time_to_mse.csv")
+    seconds = {"path": [float(r["seconds"]) for r in path_runs]} if a.mode == "quick" else {}
+    for r in ttm:
+        seconds.setdefault(r["integrator"], []).append(float(r["seconds"]) if r["reached"] == "true" else math.nan)
+    mean = {k: sum(v) / len(v) for k, v in seconds.items()}
+    ratio = mean["zvidpt"] / mean["path"]
+    seeds = ", ".join(str(1 + k) for k in range(s["runs"]))
+    how = ("path: its 256-spp target renders" if a.mode == "quick" else "path and zvidpt: `zvidpt converge --time-to-mse`")
+    lines = [stamp(a.m, a.mode, time.time() - t0), "",
+             f"Reference: path at {s['ttm_ref']} spp (`zvidpt reference --spp {s['ttm_ref']} --seed 0`); target: "
+             f"the MSE of path at 256 spp, {target:.5g} (mean of seeds {seeds}); seconds from {how}.", "",
+             f"| integrator | seconds to MSE {target:.5g} (seeds {seeds}) | ratio to path |", "|---|---|---|"]
+    for k in ("path", "zvidpt"):
+        cell = ", ".join(f"{x:.2f}" for x in seconds[k])
+        lines.append(f"| {k} | {cell} | {'1' if k == 'path' else f'**{ratio:.3f}**'} |")
+    head = (f"seconds to the MSE of 256-spp path ({target:.4f}), seeds {seeds}",
+            ", ".join(f"{x:.1f}" for x in seconds["path"]),
+            "**" + ", ".join(f"{x:.1f}" for x in seconds["zvidpt"]) + f"** ({ratio:.3f}×)", "")
+    return "\n".join(lines), head
+
+
+def race(a, s, out, log):
+    """zvidpt against Mitsuba 3 on cornell-mitsuba; None without mitsuba."""
+    if subprocess.run([sys.executable, "-c", "import mitsuba, numpy, OpenEXR"], capture_output=True).returncode != 0:
+        print("(no mitsuba/numpy/OpenEXR for this Python: the race against Mitsuba 3 is skipped)", file=sys.stderr)
+        return None
+    t0 = time.time()
+    d = out / "race"
+    run([sys.executable, "peers/race.py", "scenes/cornell-mitsuba/scene.xml", d, "--time", s["race_time"], "--seeds",
+         s["race_seeds"], "--ref-spp", s["race_ref"], "--zvidpt", a.zvidpt], log)
+    rows = read_csv(d / "race.csv")
+    by = {}
+    for r in rows:
+        by.setdefault((r["renderer"], r["integrator"]), []).append(float(r["mse_x_seconds"]))
+    mean = {k: sum(v) / len(v) for k, v in by.items()}
+    mitsuba = [v for (renderer, _), v in mean.items() if renderer != "zvidpt"]
+    md = stamp(a.m, a.mode, time.time() - t0) + "\n\n" + (d / "race.md").read_text().strip()
+    head = (f"MSE × seconds at {s['race_time']} s", f"{mean[('zvidpt', 'path')]:.4f}",
+            f"**{mean[('zvidpt', 'zvidpt')]:.4f}**", f"Mitsuba 3 `path`: {mitsuba[0]:.4f}" if mitsuba else "")
+    return md, head
+
+
+def suite(a, s, out, log):
+    """Bitterli's complete scenes at equal time; None without the collection."""
+    collection = a.bitterli or os.environ.get("BITTERLI")
+    if not collection:
+        print("(no --bitterli COLLECTION: the public-scene suite is skipped)", file=sys.stderr)
+        return None
+    t0 = time.time()
+    links = out / "bitterli-scenes"
+    links.mkdir(parents=True, exist_ok=True)
+    for name in COMPLETE:
+        src = Path(collection).resolve() / name
+        if not (src / "pbrt" / "scene-v4.pbrt").exists():
+            sys.exit(f"{src}: no pbrt/scene-v4.pbrt (is {collection} Bitterli's collection?)")
+        link = links / name
+        if link.is_symlink() or link.exists():
+            link.unlink()
+        link.symlink_to(src)
+    d = out / "suite"
+    run([sys.executable, "scripts/suite.py", links, d, "--time", s["suite_time"], "--downscale", "8", "--ref-spp",
+         s["suite_ref"], "--seeds", s["suite_seeds"], "--integrators", s["suite_integrators"], "--zvidpt", a.zvidpt], log)
+    table = (d / "suite.md").read_text().strip()
+    rows = [r for r in table.splitlines() if r.startswith("| ") and not r.startswith("| scene")]
+    n_int = len(s["suite_integrators"].split(";"))
+    ahead = sum(1 for r in rows if not r.startswith("| geometric")
+                and float(r.strip("|").split("|")[1 + n_int].strip() or "nan") > 1.0)
+    geo = [r for r in rows if r.startswith("| geometric")][0].strip("|").split("|")[1 + n_int].strip()
+    seeds = len(s["suite_seeds"].split(","))
+    head = (f"path's MSE ÷ the integrator's at {s['suite_time']} s, {seeds} seeds, geometric mean", "1",
+            f"{geo} (ahead on {ahead} of {len(COMPLETE)})", "")
+    return stamp(a.m, a.mode, time.time() - t0) + "\n\n" + table, head, d / "suite.png"
+
+
+def replace_section(path, name, body):
+    """Replaces the text between `<!-- results: NAME -->` and `<!-- /results: NAME -->`."""
+    text = path.read_text()
+    pattern = re.compile(rf"(<!-- results: {re.escape(name)} -->\n).*?(\n<!-- /results: {re.escape(name)} -->)", re.S)
+    if not pattern.search(text):
+        sys.exit(f"{path}: no `<!-- results: {name} -->` section")
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(pattern.sub(lambda m: m.group(1) + body + m.group(2), text))
+    tmp.replace(path)
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--quick", dest="mode", action="store_const", const="quick")
+    g.add_argument("--full", dest="mode", action="store_const", const="full")
+    p.add_argument("--zvidpt", required=True)
+    p.add_argument("--bitterli", help="Bitterli's collection (its root folder)")
+    p.add_argument("--out", default="results")
+    p.add_argument("--write", action="store_true", help="with --quick: rewrite the docs too")
+    a = p.parse_args()
+    a.zvidpt = str(Path(a.zvidpt).resolve())
+    s = MODES[a.mode]
+    out = Path(a.out).resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    log = out / "results.log"
+    a.m = machine()
+    t0 = time.time()
+    sections = {"cornell-paper": None, "race": None, "suite": None}
+    md, head_paper = cornell_paper(a, s, out, log)
+    sections["cornell-paper"] = md
+    head = [("`cornell-paper` (indirect light)", *head_paper)]
+    r = race(a, s, out, log)
+    if r:
+        sections["race"] = r[0]
+        head.append(("`cornell-mitsuba` (direct light, glossy, glass)", *r[1]))
+    plot = None
+    r = suite(a, s, out, log)
+    if r:
+        sections["suite"], plot = r[0], r[2]
+        head.append((f"Bitterli's {len(COMPLETE)} complete scenes, film / 8", *r[1]))
+    headline = "\n".join(["| scene | measure | `path` | `zvidpt` | peers |", "|---|---|---|---|---|"]
+                         + ["| " + " | ".join(row) + " |" for row in head])
+    report = [f"# Results ({a.mode})", "", stamp(a.m, a.mode, time.time() - t0), "", "## Headline", "", headline]
+    for name, body in sections.items():
+        if body:
+            report += ["", f"## {name}", "", body]
+    (out / "results.md").write_text("\n".join(report) + "\n")
+    print("\n" + headline)
+    if a.mode == "full" or a.write:
+        for name, body in sections.items():
+            if body:
+                replace_section(ROOT / "docs" / "results.md", name, body)
+        if plot and plot.exists():
+            shutil.copyfile(plot, ROOT / "docs" / "suite.png")
+        if len(head) == 3:
+            replace_section(ROOT / "README.md", "headline", headline)
+        print("rewrote docs/results.md" + (" and the README's headline table" if len(head) == 3 else ""))
+    print(f"wrote {out / 'results.md'} in {time.time() - t0:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
