@@ -10,7 +10,7 @@ Three studies, each the source of one row of the README's headline table:
    image, learning included. A `zvidpt reference` (path), the target (`zvidpt converge
    --integrators path --spp 256`), then `zvidpt converge --time-to-mse`. The reference's own
    noise adds the same amount to every image's MSE and to the target, so the seconds to the
-   target do not depend on it in expectation; --quick therefore takes a 1024-spp reference,
+   target do not depend on it in expectation; --quick therefore takes a 512-spp reference,
    and path's seconds to its own 256-spp error from the target runs themselves.
 2. cornell-mitsuba against Mitsuba 3 at equal time (peers/race.py; skipped without pip's
    `mitsuba`).

@@ -6,11 +6,12 @@
 #   scripts/results.sh --quick [--bitterli COLLECTION] [--out DIR] [--write]
 #   scripts/results.sh --full  [--bitterli COLLECTION] [--out DIR]
 #
-# --quick (about 12 minutes on 2 cores) uses shorter references and fewer seeds and writes
-# DIR/results.md only, unless --write; --full (about 3 hours) reproduces docs/results.md's
-# settings and rewrites its generated sections, docs/suite.png and the README's headline
-# table. Without --bitterli (or $BITTERLI) the public-scene suite is skipped; without pip's
-# `mitsuba` the race against Mitsuba 3 is. Details: `python3 scripts/results.py --help`.
+# --quick (about 13 minutes on 2 cores, plus the build) uses shorter references and two
+# seeds and writes DIR/results.md only, unless --write; --full (about 3 hours) reproduces
+# docs/results.md's settings and rewrites its generated sections, docs/suite.png and the
+# README's headline table. Without --bitterli (or $BITTERLI) the public-scene suite is
+# skipped; without pip's `mitsuba` the race against Mitsuba 3 is. Details:
+# `python3 scripts/results.py --help`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release --quiet
