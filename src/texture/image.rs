@@ -225,14 +225,14 @@ fn load_png(path: &Path, wrap: Wrap, filter: Filter, raw: bool) -> crate::Result
         png::ColorType::Rgba => 4,
         png::ColorType::Indexed => return Err(err("an indexed PNG was not expanded".into())),
     };
-    let bytes_per = match info.bit_depth {
-        png::BitDepth::Eight => 1,
-        png::BitDepth::Sixteen => 2,
+    let eight_bits = match info.bit_depth {
+        png::BitDepth::Eight => true,
+        png::BitDepth::Sixteen => false,
         d => return Err(err(format!("unsupported bit depth {d:?}"))),
     };
     let (w, h) = (info.width as usize, info.height as usize);
     let decode = |c: f32| if raw { c } else { srgb_to_linear(c) };
-    if bytes_per == 1 {
+    if eight_bits {
         let mut codes = Vec::with_capacity(w * h);
         for r in 0..h {
             let row = &buf[r * info.line_size..r * info.line_size + w * channels];
@@ -242,17 +242,11 @@ fn load_png(path: &Path, wrap: Wrap, filter: Filter, raw: bool) -> crate::Result
         let texels = Texels::Coded { codes, table: code_table(raw) };
         return Bitmap::with_texels(w, h, texels, wrap, filter).ok_or_else(|| err("the image has no pixels".into()));
     }
-    let lut: Vec<f32> = (0..256).map(|v| decode(v as f32 / 255.0)).collect();
-    let value = |row: &[u8], k: usize| -> f32 {
-        if bytes_per == 1 {
-            lut[row[k] as usize]
-        } else {
-            decode(f32::from(u16::from_be_bytes([row[2 * k], row[2 * k + 1]])) / 65535.0)
-        }
-    };
+    // 16 bits a channel, big-endian: decoded to linear floats.
+    let value = |row: &[u8], k: usize| decode(f32::from(u16::from_be_bytes([row[2 * k], row[2 * k + 1]])) / 65535.0);
     let mut texels = Vec::with_capacity(w * h);
     for r in 0..h {
-        let row = &buf[r * info.line_size..r * info.line_size + w * channels * bytes_per];
+        let row = &buf[r * info.line_size..r * info.line_size + w * channels * 2];
         for i in 0..w {
             let k = i * channels;
             texels.push(if channels < 3 {

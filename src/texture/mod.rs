@@ -51,6 +51,12 @@ pub enum Texels {
     Coded { codes: Vec<[u8; 3]>, table: Box<[[f32; 256]; 3]> },
 }
 
+/// The value of an 8-bit texel `code` through its channels' `table`.
+#[inline]
+fn decode_code([r, g, b]: [u8; 3], table: &[[f32; 256]; 3]) -> Vec3A {
+    Vec3A::new(table[0][r as usize], table[1][g as usize], table[2][b as usize])
+}
+
 impl Texels {
     /// How many texels.
     #[must_use]
@@ -73,16 +79,13 @@ impl Texels {
     pub fn get(&self, k: usize) -> Vec3A {
         match self {
             Self::Linear(t) => t[k],
-            Self::Coded { codes, table } => {
-                let [r, g, b] = codes[k];
-                Vec3A::new(table[0][r as usize], table[1][g as usize], table[2][b as usize])
-            }
+            Self::Coded { codes, table } => decode_code(codes[k], table),
         }
     }
 
     /// Every texel's value, row-major.
     pub fn values(&self) -> impl Iterator<Item = Vec3A> + '_ {
-        (0..self.len()).map(|k| self.get(k))
+        self.values_in(0..self.len())
     }
 
     /// The values of texels `range` (a chunk for digests computed in parallel).
@@ -247,10 +250,7 @@ impl Bitmap {
         // One match on the storage per lookup, not one per texel read.
         match &self.texels {
             Texels::Linear(t) => self.filtered(uv, |k| t[k]),
-            Texels::Coded { codes, table } => self.filtered(uv, |k| {
-                let [r, g, b] = codes[k];
-                Vec3A::new(table[0][r as usize], table[1][g as usize], table[2][b as usize])
-            }),
+            Texels::Coded { codes, table } => self.filtered(uv, |k| decode_code(codes[k], table)),
         }
     }
 

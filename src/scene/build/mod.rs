@@ -338,8 +338,8 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
             to_parse
                 .into_par_iter()
                 .map(|k| {
-                    let parsed = parse_mesh_file(&k.0, k.1);
-                    (k, parsed)
+                    let file = parse_mesh_file(&k.0, k.1);
+                    (k, file)
                 })
                 .collect::<HashMap<_, _>>()
         },
@@ -347,7 +347,7 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
     let (textures, texture_ids, texture_sources, texture_uv) = textures?;
     let mut meshes = Meshes::default();
     // A texture's mean is a pass over all its texels: computed once, when a material asks.
-    let means: Vec<std::sync::OnceLock<Vec3A>> = textures.iter().map(|_| std::sync::OnceLock::new()).collect();
+    let means: Vec<std::cell::OnceCell<Vec3A>> = textures.iter().map(|_| std::cell::OnceCell::new()).collect();
     let mean_of = |t: u16| *means[usize::from(t)].get_or_init(|| textures[usize::from(t)].mean());
     for (name, m) in &d.materials {
         meshes.by_name.insert(name.clone(), meshes.materials.len() as u32);

@@ -490,21 +490,18 @@ pub(super) fn read_mesh(
         ),
         None => None,
     };
-    if mesh.ply.is_some() {
-        let material = override_id.ok_or_else(|| {
-            invalid(path, format!("mesh `{file}`: a PLY mesh needs `material = \"...\"` (PLY has no materials)"))
-        })?;
-        match parsed? {
-            ParsedMesh::Ply(ply) => {
-                ply_mesh_into(mesh_path, &ply, material, mesh.reverse_winding, &mut meshes.geometry)
-            }
-            ParsedMesh::Obj(_) => unreachable!("a PLY mesh is parsed as PLY"),
+    let needs_material =
+        || invalid(path, format!("mesh `{file}`: a PLY mesh needs `material = \"...\"` (PLY has no materials)"));
+    // The scene's mistake is reported before the file's.
+    if mesh.ply.is_some() && override_id.is_none() {
+        return Err(needs_material());
+    }
+    match parsed? {
+        ParsedMesh::Ply(ply) => {
+            let material = override_id.ok_or_else(needs_material)?;
+            ply_mesh_into(mesh_path, &ply, material, mesh.reverse_winding, &mut meshes.geometry)
         }
-    } else {
-        match parsed? {
-            ParsedMesh::Obj(obj) => obj_models_into(mesh_path, obj, override_id, mesh.reverse_winding, meshes),
-            ParsedMesh::Ply(_) => unreachable!("an OBJ mesh is parsed as OBJ"),
-        }
+        ParsedMesh::Obj(obj) => obj_models_into(mesh_path, obj, override_id, mesh.reverse_winding, meshes),
     }
 }
 
@@ -590,8 +587,6 @@ pub(super) struct Meshes {
     pub(crate) geometry: Geometry,
 }
 
-/// Adds the triangles of the PLY file `ply_path`, all of `material` (polygons triangulated as
-/// OBJ faces are; vertex normals and texture coordinates kept where every vertex has them).
 /// A gzip file's contents (pbrt's `.ply.gz`), at most [`MAX_MESH_BYTES`] of them.
 pub(super) fn gunzip(path: &Path, bytes: &[u8]) -> Result<Vec<u8>> {
     use std::io::Read;
@@ -626,7 +621,9 @@ fn parse_ply(ply_path: &Path, bytes: &[u8]) -> Result<ply::PlyMesh> {
         .map_err(|m| Error::Mesh { path: ply_path.to_path_buf(), message: format!("not a valid PLY file ({m})") })
 }
 
-/// Adds the triangles of the parsed PLY file `mesh` (named `ply_path` in errors).
+/// Adds the triangles of the parsed PLY file `mesh` (named `ply_path` in errors), all of
+/// `material` (polygons triangulated as OBJ faces are; vertex normals and texture coordinates
+/// kept where every vertex has them).
 fn ply_mesh_into(
     ply_path: &Path,
     mesh: &ply::PlyMesh,
