@@ -14,12 +14,14 @@ hand. For each seed:
   render measures its seconds per sample, and the race render's spp is the budget over that (its own seconds are
   reported; Mitsuba has no time budget of its own).
 
-Every image is compared with a reference, `zvidpt reference` (`path` at --ref-spp, kept in
-OUT/ref.exr while the scene's content hash and spp match): MSE, and MSE x seconds (lower is
-better, the figure that equal time cannot make exactly equal). Before any comparison the
+Every image is compared with a reference, the mean of two `zvidpt reference` renders (`path`
+at half --ref-spp each, seeds 1000003 and 1000004, kept in OUT/ref-0.exr and ref-1.exr while
+the scene's content hash and spp match): MSE less the reference's own noise (measured from the spread
+between the two halves; every MSE against the reference contains it), and
+MSE x seconds (lower is better, the figure that equal time cannot make exactly equal). Before any comparison the
 translation is checked: the mean of Mitsuba's images against the reference's mean, per
 channel, with a z statistic whose variance comes from the spread between Mitsuba's seeds
-(per pixel, (a - b)^2 / 2 over two seeds) and the reference's own variance; |z| above 4 is
+(per pixel, (a - b)^2 / 2 over two seeds) and the reference's (from its halves); |z| above 4 is
 reported as a mismatch and its MSE is not a race result.
 
 Writes OUT/race.csv (a row per renderer, integrator and seed) and OUT/race.md.
@@ -95,9 +97,19 @@ def main():
     defines = [x for d in a.defines for x in ("-D", d)]
     threads = ["--threads", str(a.threads)]
 
-    ref_path = out / "ref.exr"
-    run([a.zvidpt, "reference", a.scene, "--spp", a.ref_spp, "-o", ref_path, "-q", *threads, *defines])
-    ref, ref_var = read_exr(ref_path)
+    # Two references of half the samples each, independent (seeds apart from the renders'): their mean is the
+    # reference, and their spread measures its own noise, which every MSE against it contains;
+    # each MSE below is less it (an unbiased estimate of the error against the converged image).
+    halves = []
+    for k in (0, 1):
+        ref_path = out / f"ref-{k}.exr"
+        run([a.zvidpt, "reference", a.scene, "--spp", max(1, a.ref_spp // 2), "--seed", 1_000_003 + k, "-o",
+             ref_path, "-q", *threads, *defines])
+        halves.append(read_exr(ref_path)[0])
+    ref = (halves[0] + halves[1]) / 2
+    # Per pixel, (a - b)^2 / 4 estimates the variance of the mean of two independent renders.
+    ref_pixel_var = (halves[0] - halves[1]) ** 2 / 4
+    ref_noise = float(ref_pixel_var.mean())
     rows = []
 
     for flags in [f.split() for f in a.integrators.split(";") if f.strip()]:
@@ -108,7 +120,7 @@ def main():
                      "-o", img, "--no-png", *threads, *defines])
             rgb, _ = read_exr(img)
             secs = zvidpt_seconds(o)
-            mse = float(((rgb - ref) ** 2).mean())
+            mse = float(((rgb - ref) ** 2).mean()) - ref_noise
             rows.append(("zvidpt", name, seed, secs, mse))
             print(f"zvidpt {name} seed {seed}: {secs:.2f} s, MSE {mse:.4g}", flush=True)
 
@@ -126,7 +138,7 @@ def main():
     for seed in seeds:
         img, secs = mitsuba_render(scene, spp, seed)
         images.append(img)
-        mse = float(((img - ref) ** 2).mean())
+        mse = float(((img - ref) ** 2).mean()) - ref_noise
         rows.append(("mitsuba", f"path {spp} spp", seed, secs, mse))
         print(f"mitsuba path {spp} spp seed {seed}: {secs:.2f} s, MSE {mse:.4g}", flush=True)
 
@@ -137,7 +149,7 @@ def main():
         spread = ((images[0] - images[1]) ** 2 / 2).sum(axis=(0, 1)) / pixels**2 / len(images)
     else:
         spread = np.zeros(3)
-    ref_var_mean = (ref_var.sum(axis=(0, 1)) / a.ref_spp / pixels**2) if ref_var is not None else np.zeros(3)
+    ref_var_mean = ref_pixel_var.sum(axis=(0, 1)) / pixels**2
     diff = mean.mean(axis=(0, 1)) - ref.mean(axis=(0, 1))
     z = diff / np.sqrt(np.maximum(spread + ref_var_mean, 1e-30))
     ratio = mean.mean(axis=(0, 1)) / np.maximum(ref.mean(axis=(0, 1)), 1e-30)
@@ -153,7 +165,9 @@ def main():
             w.writerow([*r, r[3] * r[4]])
     lines = [
         f"Equal time {a.time:g} s, {a.threads} threads, seeds {a.seeds}; MSE against `zvidpt reference` "
-        f"(path, {a.ref_spp} spp). {check}.",
+        f"(path, {a.ref_spp} spp in two independent halves) less the reference's own noise ({ref_noise:.3g}, "
+        f"from the halves' spread). "
+        f"{check}.",
         "",
         "| renderer | integrator | seconds | MSE | MSE x seconds | spread of MSE x seconds over seeds |",
         "|---|---|---|---|---|---|",

@@ -2,7 +2,7 @@
 """Regenerates the results tables (run through scripts/results.sh, which builds the binary).
 
     python3 scripts/results.py --zvidpt BIN (--quick | --full) [--bitterli COLLECTION]
-        [--out DIR] [--write]
+        [--out DIR] [--write] [--studies cornell-paper,race,suite]
 
 Three studies, each the source of one row of the README's headline table:
 
@@ -184,6 +184,24 @@ def replace_section(path, name, body):
     tmp.replace(path)
 
 
+def replace_headline_rows(path, head):
+    """Replaces the README headline's rows of the studies that ran (matched by their first
+    cell), keeping the others' rows as they were measured."""
+    text = path.read_text()
+    m = re.search(r"<!-- results: headline -->\n(.*?)\n<!-- /results: headline -->", text, re.S)
+    if not m:
+        sys.exit(f"{path}: no `<!-- results: headline -->` section")
+    lines = m.group(1).splitlines()
+    for row in head:
+        new = "| " + " | ".join(row) + " |"
+        at = [i for i, line in enumerate(lines) if line.startswith("| " + row[0] + " |")]
+        if at:
+            lines[at[0]] = new
+        else:
+            lines.append(new)
+    replace_section(path, "headline", "\n".join(lines))
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     g = p.add_mutually_exclusive_group(required=True)
@@ -193,8 +211,15 @@ def main():
     p.add_argument("--bitterli", help="Bitterli's collection (its root folder)")
     p.add_argument("--out", default="results")
     p.add_argument("--write", action="store_true", help="with --quick: rewrite the docs too")
+    p.add_argument("--studies", default="cornell-paper,race,suite",
+                   help="the studies to run, comma-separated (default all three); the README's headline "
+                        "table is rewritten only when all three ran")
     a = p.parse_args()
     a.zvidpt = str(Path(a.zvidpt).resolve())
+    studies = [x.strip() for x in a.studies.split(",") if x.strip()]
+    unknown = [x for x in studies if x not in ("cornell-paper", "race", "suite")]
+    if unknown or not studies:
+        p.error(f"--studies: unknown study {', '.join(unknown) or '(none given)'} (cornell-paper, race, suite)")
     s = MODES[a.mode]
     out = Path(a.out).resolve()
     out.mkdir(parents=True, exist_ok=True)
@@ -202,15 +227,17 @@ def main():
     a.m = machine()
     t0 = time.time()
     sections = {"cornell-paper": None, "race": None, "suite": None}
-    md, head_paper = cornell_paper(a, s, out, log)
-    sections["cornell-paper"] = md
-    head = [("`cornell-paper` (indirect light)", *head_paper)]
-    r = race(a, s, out, log)
+    head = []
+    if "cornell-paper" in studies:
+        md, head_paper = cornell_paper(a, s, out, log)
+        sections["cornell-paper"] = md
+        head.append(("`cornell-paper` (indirect light)", *head_paper))
+    r = race(a, s, out, log) if "race" in studies else None
     if r:
         sections["race"] = r[0]
         head.append(("`cornell-mitsuba` (direct light, glossy, glass)", *r[1]))
     plot = None
-    r = suite(a, s, out, log)
+    r = suite(a, s, out, log) if "suite" in studies else None
     if r:
         sections["suite"], plot = r[0], r[2]
         head.append((f"Bitterli's {len(COMPLETE)} complete scenes, film / 8", *r[1]))
@@ -228,9 +255,9 @@ def main():
                 replace_section(ROOT / "docs" / "results.md", name, body)
         if plot and plot.exists():
             shutil.copyfile(plot, ROOT / "docs" / "suite.png")
-        if len(head) == 3:
-            replace_section(ROOT / "README.md", "headline", headline)
-        print("rewrote docs/results.md" + (" and the README's headline table" if len(head) == 3 else ""))
+        if head:
+            replace_headline_rows(ROOT / "README.md", head)
+        print("rewrote docs/results.md" + (f" and {len(head)} row(s) of the README's headline table" if head else ""))
     print(f"wrote {out / 'results.md'} in {time.time() - t0:.0f} s")
 
 

@@ -7,14 +7,16 @@ references, as one table.
 SCENES is a folder of scene folders; each is a scene zvidpt opens (scene.toml, scene.xml or
 scene.pbrt inside, or pbrt/scene-v4.pbrt as in Bitterli's collection). For each scene:
 
-1. a reference, `zvidpt reference` with `path` at --ref-spp (OUT/refs/NAME.exr; kept and
-   reused while the scene's content hash and spp match);
+1. a reference: two `zvidpt reference` renders (`path`) of half --ref-spp each, seeds 1000003
+   and 1000004 (OUT/refs/NAME-0.exr, NAME-1.exr; kept and reused while the scene's content hash and spp
+   match); their mean is the reference and their spread its noise, which is taken out of
+   every MSE (`zvidpt diff IMAGE REF0 REF1`: "MSE less it");
 2. every integrator (a `zvidpt render` flag string; `;` between them) for --time seconds per
    seed, its MSE against the reference (`zvidpt diff`).
 
-Writes OUT/suite.csv (a row per scene, integrator and seed: seconds, spp, MSE, relMSE, and both
-without the worst 0.1% of pixels), OUT/suite.md (per scene the mean MSE of each integrator, its
-ratio to the first one's, the same ratio of the trimmed MSE, and the geometric means of the
+Writes OUT/suite.csv (a row per scene, integrator and seed: seconds, spp, MSE less the reference's
+own noise, the plain MSE, relMSE, and both without the worst 0.1% of pixels), OUT/suite.md (per
+scene the mean MSE of each integrator, its ratio to the first one's, the same ratio of the trimmed MSE, and the geometric means of the
 ratios over the scenes), and OUT/suite.png (MSE per scene and
 integrator, log scale) when matplotlib is installed. Equal time means equal wall-clock
 seconds of rendering on the same machine and threads, training and pre-passes included.
@@ -97,16 +99,22 @@ def main():
             continue
         name = d.name
         res = resolution(f, a.resolution, a.downscale)
-        ref = out / "refs" / f"{name}.exr"
+        # Two references of half the samples each, independent (seeds apart from the renders'): their mean is
+        # the reference, and their spread measures its noise, which `zvidpt diff` takes out of
+        # every MSE.
+        refs = [out / "refs" / f"{name}-{k}.exr" for k in (0, 1)]
+        half = max(1, a.ref_spp // 2)
         depth = ["--max-depth", a.max_depth] if a.max_depth else []
         try:
-            if depth:
-                # `reference` keeps the scene's depth: a render of that depth instead.
-                if not ref.exists():
-                    run([a.zvidpt, "render", f, "--integrator", "path", "--spp", a.ref_spp, "--resolution", res,
-                         *depth, "-o", ref, "--no-png", "-q"])
-            else:
-                run([a.zvidpt, "reference", f, "--spp", a.ref_spp, "--resolution", res, "-o", ref, "-q"])
+            for k, ref in enumerate(refs):
+                if depth:
+                    # `reference` keeps the scene's depth: a render of that depth instead.
+                    if not ref.exists():
+                        run([a.zvidpt, "render", f, "--integrator", "path", "--spp", half, "--seed",
+                             1_000_003 + k, "--resolution", res, *depth, "-o", ref, "--no-png", "-q"])
+                else:
+                    run([a.zvidpt, "reference", f, "--spp", half, "--seed", 1_000_003 + k, "--resolution", res,
+                         "-o", ref, "-q"])
         except RuntimeError as e:
             print(f"{name}: reference failed: {e}", file=sys.stderr)
             continue
@@ -120,17 +128,18 @@ def main():
                     line = run([a.zvidpt, "render", f, "--integrator", *integ.split(),
                                 "--time", a.time, "--seed", seed, "--resolution", res, *depth, "-o", img, "--no-png"])
                     m = re.search(r"(\d+) spp.*?, ([\d.]+) s\b", line.splitlines()[-1])
-                    d = run([a.zvidpt, "diff", img, ref])
+                    d = run([a.zvidpt, "diff", img, *refs])
                     mse, rel = re.search(r"MSE (\S+)\s+relMSE (\S+)", d).groups()
+                    raw, mse = mse, re.search(r"MSE less it (\S+)", d).group(1)
                     tmse, trel = re.search(r"pixels: MSE (\S+)\s+relMSE ([^\s)]+)", d).groups()
                     rows.append(dict(scene=name, integrator=integ, seed=seed, seconds=m.group(2), spp=m.group(1),
-                                     mse=float(mse), relmse=float(rel), mse_trimmed=float(tmse),
+                                     mse=float(mse), mse_raw=float(raw), relmse=float(rel), mse_trimmed=float(tmse),
                                      relmse_trimmed=float(trel)))
                     print(f"{name} | {integ} | seed {seed}: MSE {float(mse):.4g} ({m.group(1)} spp)", flush=True)
                 except RuntimeError as e:
                     print(f"{name} | {integ} | seed {seed}: failed: {e}", file=sys.stderr)
     with open(out / "suite.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=["scene", "integrator", "seed", "seconds", "spp", "mse", "relmse",
+        w = csv.DictWriter(fh, fieldnames=["scene", "integrator", "seed", "seconds", "spp", "mse", "mse_raw", "relmse",
                                            "mse_trimmed", "relmse_trimmed"])
         w.writeheader()
         w.writerows(rows)
@@ -144,16 +153,18 @@ def main():
     base = integrators[0]
     others = integrators[1:]
     lines = [f"Equal time {a.time:g} s per render, {a.resolution if not a.downscale else f'film / {a.downscale}'}, "
-             f"seeds {a.seeds}; MSE against `path` at {a.ref_spp} spp, mean over the seeds; ratio = {base}'s MSE / "
-             f"the integrator's (above 1: better than {base}); trimmed: the same without each image's worst 0.1% "
-             f"of pixels (a few fireflies can hold most of an image's squared error).", "",
+             f"seeds {a.seeds}; MSE against `path` at {a.ref_spp} spp less the reference's own noise (measured "
+             f"from two independent halves), mean over the seeds; ratio = {base}'s MSE / "
+             f"the integrator's (above 1: better than {base}); trimmed: the plain MSE without each image's worst "
+             f"0.1% of pixels (a few fireflies can hold most of an image's squared error).", "",
              "| " + " | ".join(["scene"] + [f"{i} MSE" for i in integrators] + [f"{base} / {i}" for i in others]
                                + [f"{base} / {i} trimmed" for i in others]) + " |",
              "|---|" + "---|" * (len(integrators) + 2 * len(others))]
     logs = {(i, k): [] for k in ("mse", "trimmed") for i in others}
 
     def ratio(table, s, i, k):
-        if (s, i) in table and (s, base) in table and table[(s, i)] > 0:
+        # Less the reference's noise, an MSE can come out at or below zero: no ratio then.
+        if (s, i) in table and (s, base) in table and table[(s, i)] > 0 and table[(s, base)] > 0:
             r = table[(s, base)] / table[(s, i)]
             logs[(i, k)].append(math.log(r))
             return f"{r:.2f}"

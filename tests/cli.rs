@@ -109,6 +109,18 @@ fn render_info_and_diff_smoke() {
     assert!(map.is_file());
     let same = zvidpt(&["diff", s(&a), s(&a)]);
     assert!(String::from_utf8_lossy(&same.stdout).starts_with("MSE 0.000000e0"));
+    // Two references: their mean is the reference and their spread its noise. Measured against
+    // a and b, a's error is all the references' noise: (a − b)²/4 each way, so nothing is left.
+    let pair = zvidpt(&["diff", s(&a), s(&a), s(&b)]);
+    let text = String::from_utf8_lossy(&pair.stdout);
+    let value =
+        |key: &str| -> f64 { text.split(key).nth(1).unwrap().split_whitespace().next().unwrap().parse().unwrap() };
+    let (mse, noise, less) = (value("MSE "), value("reference noise "), value("MSE less it "));
+    assert!(
+        pair.status.success() && mse > 0.0 && (noise - mse).abs() < 1e-5 * mse && less.abs() < 1e-5 * mse,
+        "{text}"
+    );
+    assert!(text.contains("from 2 independent references"), "{text}");
     // Error by bands of rows: one line each, shares adding up to 100%.
     let bands = zvidpt(&["diff", s(&a), s(&b), "--bands", "4"]);
     let text = String::from_utf8_lossy(&bands.stdout);

@@ -7,6 +7,11 @@ pub struct DiffArgs {
     pub image: PathBuf,
     /// The reference image.
     pub reference: PathBuf,
+    /// More references: independent renders of the same image (other seeds). Their mean is
+    /// the reference, and the spread between them measures its noise, which every MSE against
+    /// it contains: `diff` then also prints the MSE less that noise.
+    #[arg(value_name = "MORE_REFERENCES")]
+    pub more_references: Vec<PathBuf>,
     /// Write a false-colour PNG of per-pixel relative squared error.
     #[arg(long)]
     pub error_map: Option<PathBuf>,
@@ -18,9 +23,16 @@ pub struct DiffArgs {
 
 pub(super) fn run_diff(args: &DiffArgs) -> Result<()> {
     let (image, _) = film::read_exr(&args.image)?;
-    let (reference, _) = film::read_exr(&args.reference)?;
+    let mut references = vec![film::read_exr(&args.reference)?.0];
+    for path in &args.more_references {
+        references.push(film::read_exr(path)?.0);
+    }
+    let noise = film::reference_noise(&references)?;
+    let reference = if references.len() == 1 { references.remove(0) } else { film::mean_image(&references)? };
     if let Some(p) = &args.error_map {
-        film::check_outputs(&[("error map", p)], &[("image", &args.image), ("reference", &args.reference)])?;
+        let mut inputs = vec![("image", args.image.as_path()), ("reference", args.reference.as_path())];
+        inputs.extend(args.more_references.iter().map(|r| ("reference", r.as_path())));
+        film::check_outputs(&[("error map", p)], &inputs)?;
     }
     let m = film::metrics(&image, &reference)?;
     if let Some(p) = &args.error_map {
@@ -35,6 +47,13 @@ pub(super) fn run_diff(args: &DiffArgs) -> Result<()> {
         t.mse,
         t.rel_mse
     );
+    if let Some(noise) = noise {
+        out!(
+            "reference noise {noise:.6e} (from {} independent references)  MSE less it {:.6e}  (the expected error against the converged image)",
+            1 + args.more_references.len(),
+            m.mse - noise
+        );
+    }
     for (what, img, path) in [("image", &image, &args.image), ("reference", &reference, &args.reference)] {
         let bad = non_finite_values(img);
         if bad > 0 {

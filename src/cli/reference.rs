@@ -44,6 +44,7 @@ pub(super) fn run_reference(args: &ReferenceArgs) -> Result<()> {
                 && image.spp == args.spp
                 && meta.get("integrator") == Some("path")
                 && image.variance.is_some()
+                && meta.get("seed") == Some(args.seed.to_string().as_str())
         });
     if up_to_date {
         out!("{}: up to date ({} spp, scene {hash}); --force renders it again", args.output.display(), args.spp);

@@ -74,6 +74,48 @@ pub fn metrics_of_rows(image: &Image, reference: &Image, rows: std::ops::Range<u
     Ok(Metrics { mse: se / n, rel_mse: rel / n })
 }
 
+/// The mean of independent renders of the same image (same size): one reference of their
+/// combined samples.
+pub fn mean_image(images: &[Image]) -> Result<Image> {
+    let first = images.first().ok_or_else(|| Error::InvalidOption("no image to average".into()))?;
+    for other in &images[1..] {
+        same_size(first, other)?;
+    }
+    let k = images.len() as f64;
+    let pixels = (0..first.pixels.len())
+        .map(|i| [0, 1, 2].map(|c| (images.iter().map(|im| f64::from(im.pixels[i][c])).sum::<f64>() / k) as f32))
+        .collect();
+    let spp = images.iter().map(|im| im.spp).fold(0u32, u32::saturating_add);
+    Ok(Image { width: first.width, height: first.height, pixels, variance: None, spp })
+}
+
+/// The noise of [`mean_image`] of `k ≥ 2` independent renders: the mean over pixels and
+/// channels of their unbiased sample variance over `k`. Every MSE against that mean contains
+/// this term in expectation, so `mse − reference_noise` estimates the error against the
+/// converged image without bias (and may come out below zero when both are tiny). It needs
+/// independent renders (different seeds), not one image's variance layer: that layer is the
+/// variance of independent samples, which a stratified sampler's pixel is not (at an edge it
+/// overstates the noise many times). `None` for fewer than two images.
+pub fn reference_noise(images: &[Image]) -> Result<Option<f64>> {
+    let k = images.len();
+    if k < 2 {
+        return Ok(None);
+    }
+    for other in &images[1..] {
+        same_size(&images[0], other)?;
+    }
+    let kf = k as f64;
+    let mut sum = 0.0f64;
+    for i in 0..images[0].pixels.len() {
+        for c in 0..3 {
+            let mean = images.iter().map(|im| f64::from(im.pixels[i][c])).sum::<f64>() / kf;
+            let s2 = images.iter().map(|im| (f64::from(im.pixels[i][c]) - mean).powi(2)).sum::<f64>() / (kf - 1.0);
+            sum += s2 / kf;
+        }
+    }
+    Ok(Some(sum / (3 * images[0].pixels.len()).max(1) as f64))
+}
+
 /// A false-colour PNG of per-pixel relative squared error (mean over channels), on a log scale
 /// from 1e-4 (dark blue) to 1 (yellow-white).
 pub fn error_map_png(path: &Path, image: &Image, reference: &Image) -> Result<()> {
@@ -117,6 +159,14 @@ mod tests {
         assert_eq!(metrics(&a, &a).unwrap().mse, 0.0);
         let c = Image { width: 1, height: 2, ..a.clone() };
         assert!(metrics(&a, &c).is_err());
+        assert_eq!(reference_noise(std::slice::from_ref(&b)).unwrap(), None);
+        // Two "renders" 0 and 1 of every value: mean 0.5, sample variance 0.5, noise 0.5 / 2.
+        let ones = Image { pixels: vec![[1.0; 3]; 2], ..b.clone() };
+        let noise = reference_noise(&[b.clone(), ones.clone()]).unwrap().unwrap();
+        assert!((noise - 0.25).abs() < 1e-12, "{noise}");
+        let mean = mean_image(&[b.clone(), ones]).unwrap();
+        assert!(mean.pixels.iter().all(|p| *p == [0.5; 3]) && mean.spp == 2);
+        assert!(reference_noise(&[a.clone(), c.clone()]).is_err());
         // Under 1,000 pixels nothing is left out.
         assert_eq!(trimmed(&a, &b).unwrap(), m);
     }

@@ -13,7 +13,9 @@ pub use atomic::{
     write_atomically,
 };
 pub use exr_io::{read_exr, read_exr_from, stage_exr, stage_exr_with, write_exr};
-pub use metrics::{Metrics, TRIM_FRACTION, error_map_png, metrics, metrics_of_rows, trimmed};
+pub use metrics::{
+    Metrics, TRIM_FRACTION, error_map_png, mean_image, metrics, metrics_of_rows, reference_noise, trimmed,
+};
 pub use partial::{PartialHeader, parse_partial, read_partial, read_partial_header, stage_partial, stage_sums};
 pub use passes::{PriorSamples, mean_and_variance, mean_variance};
 pub use png_out::write_rgb8 as write_rgb8_png;

@@ -161,17 +161,18 @@ pub struct LearnedZvidpt {
     path: Option<PathTracer>,
 }
 
-/// The learned walk against the path tracer, measured during and at the end of training: a probe of
-/// each walk from the same first hits ([`PROBE_SPP`] samples through the centres of a quarter
-/// of the pixels, not in the image; the learned walk with the guide the final render samples)
-/// gives the mean per-sample variance times the cost per sample of each. Cost is counted in
-/// rays, the learned walk's rays weighing [`LEARNED_RAY_COST`] each, so the choice is a
-/// function of scene, options and seed alone (never of the clock). Where the learned walk
-/// loses, the path tracer renders the rest; a first judgement as soon as the guide has
-/// [`MIN_TRAINING_SPP`] stops the training where the walk loses by more than
-/// [`EARLY_MARGIN`]. The training samples stay in the image (each pass unbiased, weighed by
-/// inverse variance). Either estimator is unbiased, and the choice looks only at
-/// samples that are not the final render's, so the image stays unbiased.
+/// The learned walk against the path tracer, measured during and at the end of training: a
+/// probe of each walk from the same first hits ([`PROBE_SPP`] samples through the centres of a
+/// lattice of pixels, [`probe_stride`], not in the image; the learned walk with the guide the
+/// final render samples) gives the mean per-sample variance times the cost per sample of each.
+/// Cost is counted in rays, the learned walk's rays weighing [`LEARNED_RAY_COST`] each, so the
+/// choice is a function of scene, options and seed alone (never of the clock). Where the
+/// learned walk loses, the path tracer renders the rest; a first judgement as soon as the guide
+/// has [`MIN_TRAINING_SPP`] stops the training where the walk loses by more than
+/// [`EARLY_MARGIN`], and a walk ahead by [`CLEAR_WIN`] there is not probed again. The training
+/// samples stay in the image (each pass unbiased, weighed by inverse variance). Either
+/// estimator is unbiased, and the choice looks only at samples that are not the final
+/// render's, so the image stays unbiased.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Choice {
     /// Variance × rays per sample: the path probe's, the learned walk's last measured (its
@@ -187,6 +188,28 @@ pub struct Choice {
 
 /// Samples per probed pixel, for each walk.
 pub const PROBE_SPP: u32 = 8;
+/// Most pixels a probe visits (a regular lattice of them, every second pixel of every second
+/// row or sparser): the mean variance of 16,384 pixels × [`PROBE_SPP`] samples is measured well
+/// enough to choose between walks, and at 512×384 the probes then cost a quarter of what a
+/// quarter of the pixels did (they had taken 1 s of a 12-s `cornell-paper` render).
+pub const PROBE_PIXELS: u32 = 16_384;
+/// Where the first judgement finds the learned walk ahead by this factor, its further training
+/// cannot plausibly turn that into a loss: the final judgement is skipped (its probe cost
+/// about 0.4 s of a 12-s `cornell-paper` render, where the walk is 12× ahead).
+pub const CLEAR_WIN: f64 = 4.0;
+
+/// The probe lattice's spacing for a `width × height` image: the smallest, at least 2, with at
+/// most [`PROBE_PIXELS`] pixels.
+pub fn probe_stride(width: u32, height: u32) -> u32 {
+    // Every lattice denser than sqrt(pixels / PROBE_PIXELS) holds more pixels: start there.
+    let pixels = u64::from(width) * u64::from(height);
+    let mut s = ((pixels / u64::from(PROBE_PIXELS)) as f64).sqrt() as u32;
+    s = s.max(2);
+    while u64::from(width.div_ceil(s)) * u64::from(height.div_ceil(s)) > u64::from(PROBE_PIXELS) {
+        s += 1;
+    }
+    s
+}
 /// At the first judgement (after [`MIN_TRAINING_SPP`]) the learned walk must lose by this
 /// factor to stop the training; at the end of training, by any.
 pub const EARLY_MARGIN: f64 = 1.5;
@@ -682,8 +705,8 @@ impl LearnedZvidpt {
         c
     }
 
-    /// A probe of the walks: over every second pixel of every second row (a quarter of the
-    /// image), [`PROBE_SPP`] samples through the pixel's centre, so that every sample starts
+    /// A probe of the walks: over a lattice of pixels ([`probe_stride`]: every second pixel of
+    /// every second row, sparser in images of more than 4 × [`PROBE_PIXELS`]), [`PROBE_SPP`] samples through the pixel's centre, so that every sample starts
     /// from the same first hit and the spread is the walk's alone (the pixel footprint's
     /// variance, which both estimators share and the pixel's (0,2)-sequence removes from the
     /// image, would otherwise dominate: on `cornell-paper` at 256×192 the per-sample variance
@@ -698,16 +721,17 @@ impl LearnedZvidpt {
         seed: u64,
     ) -> (f64, f64) {
         let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
-        let (mut rows, rays) = (0..height.div_ceil(2))
+        let stride = probe_stride(width, height);
+        let (mut rows, rays) = (0..height.div_ceil(stride))
             .into_par_iter()
-            .map(|i| 2 * i)
+            .map(|i| stride * i)
             .with_min_len(2)
             .fold(
                 || (Vec::new(), 0u64),
                 |(mut rows, rays), y| {
                     let mut scratch = Scratch::default();
                     let row: Vec<([f64; 3], [f64; 3])> = (0..width)
-                        .step_by(2)
+                        .step_by(stride as usize)
                         .map(|x| {
                             let pixel = UVec2::new(x, y);
                             let index = u64::from(y * width + x);
@@ -835,6 +859,7 @@ impl Integrator for LearnedZvidpt {
         if self.settings.fallback && self.path.is_none() {
             let c = match self.choice {
                 Some(c) if c.after_spp == self.training_spp() => Some(Choice { fell_back: c.learned > c.path, ..c }),
+                Some(c) if c.learned * CLEAR_WIN <= c.path => Some(c),
                 _ if self.training_spp() >= MIN_TRAINING_SPP => {
                     Some(self.judge(ctx, &path, &guide, seed, &mut path_probe, 1.0))
                 }
@@ -909,7 +934,23 @@ impl Integrator for LearnedZvidpt {
 
 #[cfg(test)]
 mod tests {
-    use super::defensive_shares;
+    use super::{PROBE_PIXELS, defensive_shares, probe_stride};
+
+    /// The probe lattice: every second pixel of every second row up to 4 × PROBE_PIXELS
+    /// pixels, then the densest lattice within PROBE_PIXELS.
+    #[test]
+    fn probe_stride_caps_the_probed_pixels() {
+        assert_eq!(probe_stride(1, 1), 2);
+        assert_eq!(probe_stride(160, 90), 2);
+        assert_eq!(probe_stride(256, 256), 2);
+        assert_eq!(probe_stride(512, 384), 4);
+        assert_eq!(probe_stride(1920, 1080), 12);
+        for (w, h) in [(512u32, 384u32), (1920, 1080), (4000, 7), (u32::MAX, 3)] {
+            let s = probe_stride(w, h);
+            let count = |s: u32| u64::from(w.div_ceil(s)) * u64::from(h.div_ceil(s));
+            assert!(count(s) <= u64::from(PROBE_PIXELS) && (s == 2 || count(s - 1) > u64::from(PROBE_PIXELS)));
+        }
+    }
 
     /// Cosine sampling keeps at least `defensive` of the directions; shares only fall, and
     /// shares that already leave it that much are kept as learned.
