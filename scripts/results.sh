@@ -5,6 +5,7 @@
 #
 #   scripts/results.sh --quick [--bitterli COLLECTION] [--out DIR] [--write]
 #   scripts/results.sh --full  [--bitterli COLLECTION] [--out DIR]
+#   (either with --studies cornell-paper,race,suite: a subset, e.g. --studies race)
 #
 # --quick (about 13 minutes on 2 cores, plus the build) uses shorter references and two
 # seeds and writes DIR/results.md only, unless --write; --full (about 3 hours) reproduces
