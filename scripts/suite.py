@@ -15,7 +15,8 @@ scene.pbrt inside, or pbrt/scene-v4.pbrt as in Bitterli's collection). For each 
    seed, its MSE against the reference (`zvidpt diff`).
 
 Writes OUT/suite.csv (a row per scene, integrator and seed: seconds, spp, MSE less the reference's
-own noise, the plain MSE, relMSE, and both without the worst 0.1% of pixels), OUT/suite.md (per
+own noise, the plain MSE, relMSE, both without the worst 0.1% of pixels, and the MSE of the
+reference's brightest 0.3% of pixels and of the rest, which add up to the first), OUT/suite.md (per
 scene the mean MSE of each integrator, its ratio to the first one's, the same ratio of the trimmed MSE, and the geometric means of the
 ratios over the scenes), and OUT/suite.png (MSE per scene and
 integrator, log scale) when matplotlib is installed. Equal time means equal wall-clock
@@ -30,6 +31,8 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+# The share of each reference's pixels, brightest first, reported apart (`zvidpt diff --bright`).
+BRIGHT = "0.003"
 DEFAULT_BIN = HERE.parent / "target" / "release" / "zvidpt"
 
 
@@ -128,19 +131,20 @@ def main():
                     line = run([a.zvidpt, "render", f, "--integrator", *integ.split(),
                                 "--time", a.time, "--seed", seed, "--resolution", res, *depth, "-o", img, "--no-png"])
                     m = re.search(r"(\d+) spp.*?, ([\d.]+) s\b", line.splitlines()[-1])
-                    d = run([a.zvidpt, "diff", img, *refs])
+                    d = run([a.zvidpt, "diff", img, *refs, "--bright", BRIGHT])
                     mse, rel = re.search(r"MSE (\S+)\s+relMSE (\S+)", d).groups()
                     raw, mse = mse, re.search(r"MSE less it (\S+)", d).group(1)
                     tmse, trel = re.search(r"pixels: MSE (\S+)\s+relMSE ([^\s)]+)", d).groups()
+                    top, rest = re.search(r"pixels: MSE (\S+)\s+the rest: MSE (\S+)", d).groups()
                     rows.append(dict(scene=name, integrator=integ, seed=seed, seconds=m.group(2), spp=m.group(1),
                                      mse=float(mse), mse_raw=float(raw), relmse=float(rel), mse_trimmed=float(tmse),
-                                     relmse_trimmed=float(trel)))
+                                     relmse_trimmed=float(trel), mse_bright=float(top), mse_rest=float(rest)))
                     print(f"{name} | {integ} | seed {seed}: MSE {float(mse):.4g} ({m.group(1)} spp)", flush=True)
                 except RuntimeError as e:
                     print(f"{name} | {integ} | seed {seed}: failed: {e}", file=sys.stderr)
     with open(out / "suite.csv", "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=["scene", "integrator", "seed", "seconds", "spp", "mse", "mse_raw", "relmse",
-                                           "mse_trimmed", "relmse_trimmed"])
+                                           "mse_trimmed", "relmse_trimmed", "mse_bright", "mse_rest"])
         w.writeheader()
         w.writerows(rows)
     def means(key):
@@ -149,18 +153,19 @@ def main():
             m.setdefault((r["scene"], r["integrator"]), []).append(r[key])
         return {k: sum(v) / len(v) for k, v in m.items()}
 
-    mean, trimmed = means("mse"), means("mse_trimmed")
+    mean, rest = means("mse"), means("mse_rest")
     base = integrators[0]
     others = integrators[1:]
     lines = [f"Equal time {a.time:g} s per render, {a.resolution if not a.downscale else f'film / {a.downscale}'}, "
              f"seeds {a.seeds}; MSE against `path` at {a.ref_spp} spp less the reference's own noise (measured "
              f"from two independent halves), mean over the seeds; ratio = {base}'s MSE / "
-             f"the integrator's (above 1: better than {base}); trimmed: the plain MSE without each image's worst "
-             f"0.1% of pixels (a few fireflies can hold most of an image's squared error).", "",
+             f"the integrator's (above 1: better than {base}); rest: the same ratio without the reference's "
+             f"brightest {100 * float(BRIGHT):g}% of pixels (lights smaller than a pixel seen directly, whose error is "
+             f"the pixel footprint's and falls with samples per second alone).", "",
              "| " + " | ".join(["scene"] + [f"{i} MSE" for i in integrators] + [f"{base} / {i}" for i in others]
-                               + [f"{base} / {i} trimmed" for i in others]) + " |",
+                               + [f"{base} / {i}, rest" for i in others]) + " |",
              "|---|" + "---|" * (len(integrators) + 2 * len(others))]
-    logs = {(i, k): [] for k in ("mse", "trimmed") for i in others}
+    logs = {(i, k): [] for k in ("mse", "rest") for i in others}
 
     def ratio(table, s, i, k):
         # Less the reference's noise, an MSE can come out at or below zero: no ratio then.
@@ -172,7 +177,7 @@ def main():
 
     for s in scenes:
         cells = [f"{mean[(s, i)]:.4g}" if (s, i) in mean else "-" for i in integrators]
-        cells += [ratio(mean, s, i, "mse") for i in others] + [ratio(trimmed, s, i, "trimmed") for i in others]
+        cells += [ratio(mean, s, i, "mse") for i in others] + [ratio(rest, s, i, "rest") for i in others]
         lines.append(f"| {s} | " + " | ".join(cells) + " |")
     geo = [f"{math.exp(sum(v) / len(v)):.2f}" if v else "-" for v in logs.values()]
     if others:

@@ -116,6 +116,40 @@ pub fn reference_noise(images: &[Image]) -> Result<Option<f64>> {
     Ok(Some(sum / (3 * images[0].pixels.len()).max(1) as f64))
 }
 
+/// The squared error of the brightest `fraction` of the reference's pixels (by mean over
+/// channels; a light seen directly, its sharp reflections) and of the rest, each summed over
+/// its pixels and divided by all the image's values, so the two add up to the MSE; with two or
+/// more independent references, each less their noise in its pixels (as [`reference_noise`]).
+/// The error in the brightest pixels is mostly the pixel footprint's (how often a sample
+/// lands on a light smaller than the pixel), the rest the light transport's.
+pub fn split_by_brightness(image: &Image, references: &[Image], fraction: f64) -> Result<(f64, f64)> {
+    let reference = mean_image(references)?;
+    same_size(image, &reference)?;
+    let n = image.pixels.len();
+    let mut order: Vec<usize> = (0..n).collect();
+    let lum = |i: usize| reference.pixels[i].iter().map(|&x| f64::from(x)).sum::<f64>();
+    order.sort_unstable_by(|&a, &b| lum(b).total_cmp(&lum(a)));
+    let bright = ((n as f64 * fraction.clamp(0.0, 1.0)).round() as usize).min(n);
+    let k = references.len() as f64;
+    let error = |i: usize| {
+        (0..3)
+            .map(|c| {
+                let d = (f64::from(image.pixels[i][c]) - f64::from(reference.pixels[i][c])).powi(2);
+                let noise = if references.len() < 2 {
+                    0.0
+                } else {
+                    let m = f64::from(reference.pixels[i][c]);
+                    references.iter().map(|r| (f64::from(r.pixels[i][c]) - m).powi(2)).sum::<f64>() / (k - 1.0) / k
+                };
+                d - noise
+            })
+            .sum::<f64>()
+    };
+    let total = (3 * n).max(1) as f64;
+    let (top, rest) = order.split_at(bright);
+    Ok((top.iter().map(|&i| error(i)).sum::<f64>() / total, rest.iter().map(|&i| error(i)).sum::<f64>() / total))
+}
+
 /// A false-colour PNG of per-pixel relative squared error (mean over channels), on a log scale
 /// from 1e-4 (dark blue) to 1 (yellow-white).
 pub fn error_map_png(path: &Path, image: &Image, reference: &Image) -> Result<()> {
@@ -167,6 +201,11 @@ mod tests {
         let mean = mean_image(&[b.clone(), ones]).unwrap();
         assert!(mean.pixels.iter().all(|p| *p == [0.5; 3]) && mean.spp == 2);
         assert!(reference_noise(&[a.clone(), c.clone()]).is_err());
+        // a against b: all the error in a's bright pixel, none in the rest; the parts add up.
+        let (top, rest) = split_by_brightness(&b, std::slice::from_ref(&a), 0.5).unwrap();
+        assert!((top - 0.5).abs() < 1e-12 && rest == 0.0, "{top} {rest}");
+        let (all, none) = split_by_brightness(&b, std::slice::from_ref(&a), 1.0).unwrap();
+        assert!((all - m.mse).abs() < 1e-12 && none == 0.0);
         // Under 1,000 pixels nothing is left out.
         assert_eq!(trimmed(&a, &b).unwrap(), m);
     }

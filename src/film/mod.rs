@@ -14,7 +14,8 @@ pub use atomic::{
 };
 pub use exr_io::{read_exr, read_exr_from, stage_exr, stage_exr_with, write_exr};
 pub use metrics::{
-    Metrics, TRIM_FRACTION, error_map_png, mean_image, metrics, metrics_of_rows, reference_noise, trimmed,
+    Metrics, TRIM_FRACTION, error_map_png, mean_image, metrics, metrics_of_rows, reference_noise, split_by_brightness,
+    trimmed,
 };
 pub use partial::{PartialHeader, parse_partial, read_partial, read_partial_header, stage_partial, stage_sums};
 pub use passes::{PriorSamples, mean_and_variance, mean_variance};

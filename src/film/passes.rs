@@ -16,7 +16,12 @@
 //! final samples, its noise showing in every pixel it covered. A pass's weight therefore uses
 //! the larger of its own variance and the next pass's (training improves the guide, so a pass
 //! is not truly better than the one after it): each pass is weighed when its successor has
-//! been measured, the last one at [`PriorSamples::finish`].
+//! been measured, the last one against the final passes in [`PriorSamples::combine`]. The
+//! final passes sample the trained guide, or the path tracer where the learned walk lost
+//! (`integrator::zvidpt::Choice`), so the last training pass is no better than they are:
+//! weighed by its own variance, a 32-spp pass that saw a sub-pixel light less often than its
+//! variance needs took a share of the image above its share of the samples (Bitterli's
+//! veach-mis, 32 of 284 spp).
 
 /// Per-pixel sums (row-major, linear RGB) of passes taken before the final passes, already
 /// weighted; [`Self::combine`] adds the final passes.
@@ -99,11 +104,6 @@ impl PriorSamples {
     /// Appends these samples to `out` (little-endian; read back by [`Self::decode`]); a pass
     /// not yet weighed is weighed first, as [`Self::finish`] would.
     pub fn encode(&self, out: &mut Vec<u8>) {
-        if self.pending.is_some() {
-            let mut done = self.clone();
-            done.finish();
-            return done.encode(out);
-        }
         out.extend_from_slice(&self.spp.to_le_bytes());
         out.extend_from_slice(&self.width.to_le_bytes());
         out.extend_from_slice(&(self.weighted.len() as u64).to_le_bytes());
@@ -114,6 +114,19 @@ impl PriorSamples {
         for p in self.weighted.iter().chain(&self.variance) {
             for v in p {
                 out.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        // The pass not yet weighed, if any, follows (files without it end here).
+        if let Some(p) = &self.pending {
+            out.push(1);
+            out.extend_from_slice(&p.spp.to_le_bytes());
+            for v in p.variance {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+            for q in p.sum.iter().chain(&p.sum_sq) {
+                for v in q {
+                    out.extend_from_slice(&v.to_le_bytes());
+                }
             }
         }
     }
@@ -139,20 +152,30 @@ impl PriorSamples {
             [1] => Some(last),
             _ => return None,
         };
-        let mut read = |count: usize| -> Option<Vec<[f64; 3]>> {
+        fn read(b: &mut &[u8], count: usize) -> Option<Vec<[f64; 3]>> {
             (0..count)
                 .map(|_| {
-                    Some([
-                        f64::from_le_bytes(take(bytes)?),
-                        f64::from_le_bytes(take(bytes)?),
-                        f64::from_le_bytes(take(bytes)?),
-                    ])
+                    Some([f64::from_le_bytes(take(b)?), f64::from_le_bytes(take(b)?), f64::from_le_bytes(take(b)?)])
                 })
                 .collect()
+        }
+        let weighted = read(bytes, pixels)?;
+        let variance = read(bytes, pixels)?;
+        let pending = match bytes.first() {
+            Some(1) => {
+                *bytes = &bytes[1..];
+                let spp = u32::from_le_bytes(take(bytes)?);
+                let variance = [f64::from_le_bytes(take(bytes)?), f64::from_le_bytes(take(bytes)?)];
+                let (sum, sum_sq) = (read(bytes, pixels)?, read(bytes, pixels)?);
+                let valid = |v: f64| v.is_finite() && v > 0.0;
+                if spp < 2 || !variance.iter().all(|&v| valid(v)) {
+                    return None;
+                }
+                Some(Pending { spp, sum, sum_sq, variance })
+            }
+            _ => None,
         };
-        let weighted = read(pixels)?;
-        let variance = read(pixels)?;
-        Some(Self { spp, width, weighted, variance, weight, last, pending: None })
+        Some(Self { spp, width, weighted, variance, weight, last, pending })
     }
 
     #[must_use]
@@ -199,7 +222,9 @@ impl PriorSamples {
         true
     }
 
-    /// Weighs the pass added last by its own variance (the training is over).
+    /// Weighs the pass added last by its own variance (for when no final pass will be
+    /// measured; otherwise leave it to [`Self::combine`], which floors it by the final
+    /// passes' variance).
     pub fn finish(&mut self) {
         if let Some(p) = self.pending.take() {
             self.weigh(p.spp, &p.sum, &p.sum_sq, p.variance);
@@ -231,9 +256,13 @@ impl PriorSamples {
     /// A pass not yet weighed is weighed first, as [`Self::finish`] would.
     #[must_use]
     pub fn combine(&self, spp: u32, sum: &[[f64; 3]], sum_sq: &[[f64; 3]]) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
-        if self.pending.is_some() {
-            let mut done = self.clone();
-            done.finish();
+        if let Some(p) = &self.pending {
+            // The last training pass is weighed by the larger of its variance and the final
+            // passes' (per parity, so a pixel's weights still come from the other parity).
+            let v = if spp >= 2 { parity_variance(self.width, spp, sum, sum_sq) } else { p.variance };
+            let floor = [p.variance[0].max(v[0]), p.variance[1].max(v[1])];
+            let mut done = Self { pending: None, ..self.clone() };
+            done.weigh(p.spp, &p.sum, &p.sum_sq, floor);
             return done.combine(spp, sum, sum_sq);
         }
         let n = f64::from(spp);
@@ -307,24 +336,31 @@ mod tests {
     fn a_pixel_does_not_weight_itself() {
         let (w, h) = (5, 4);
         let base: Vec<[f64; 3]> = (0..20).map(|i| [i as f64 * 0.1, 0.5, 1.0]).collect();
-        let render = |bump: bool| {
+        // The firefly in the training pass (`final_pass` false) or in the final one, which
+        // the last training pass's weight also reads.
+        let render = |bump: bool, final_pass: bool| {
             let mut prior = PriorSamples::new(w, h);
             let (s, mut q) = pass(&base, 8, 1.0);
-            if bump {
-                // Pixel 6 (x 1, y 1: even parity) gets a firefly-sized second moment.
+            // Pixel 6 (x 1, y 1: even parity) gets a firefly-sized second moment.
+            if bump && !final_pass {
                 q[6] = q[6].map(|x| x * 50.0);
             }
             prior.add_pass(8, &s, &q);
-            let (s, q) = pass(&base.iter().map(|v| v.map(|x| x + 0.3)).collect::<Vec<_>>(), 8, 0.5);
+            let (s, mut q) = pass(&base.iter().map(|v| v.map(|x| x + 0.3)).collect::<Vec<_>>(), 8, 0.5);
+            if bump && final_pass {
+                q[6] = q[6].map(|x| x * 50.0);
+            }
             prior.combine(8, &s, &q).0
         };
-        let (plain, bumped) = (render(false), render(true));
-        for i in 0..20 {
-            if parity(i, w) == 0 {
-                assert_eq!(plain[i], bumped[i], "pixel {i} of the same parity moved");
+        for final_pass in [false, true] {
+            let (plain, bumped) = (render(false, final_pass), render(true, final_pass));
+            for i in 0..20 {
+                if parity(i, w) == 0 && i != 6 {
+                    assert_eq!(plain[i], bumped[i], "pixel {i} of the same parity moved");
+                }
             }
+            assert!((0..20).any(|i| parity(i, w) == 1 && plain[i] != bumped[i]), "the other parity's weights follow");
         }
-        assert!((0..20).any(|i| parity(i, w) == 1 && plain[i] != bumped[i]), "the other parity's weights follow");
     }
 
     /// A pass is weighed by the larger of its variance and its successor's: a 2-spp pass that
@@ -346,6 +382,34 @@ mod tests {
             assert!((p[0] - 2.6).abs() < 1e-5, "{p:?}");
         }
         assert_eq!(prior.spp, 10);
+    }
+
+    /// The last training pass is weighed against the final passes the same way: a 2-spp pass
+    /// that measured a tenth of the final passes' variance weighs as one of their variance.
+    /// Encoded (a checkpoint or part file) before the final passes, it stays unweighed and
+    /// gives the same pixels.
+    #[test]
+    fn the_last_pass_is_no_better_than_the_final_passes() {
+        let (w, h) = (4, 2);
+        let mut prior = PriorSamples::new(w, h);
+        let (s, q) = pass(&[[1.0; 3]; 8], 2, 1.0);
+        assert!(prior.add_pass(2, &s, &q));
+        let (s, q) = pass(&[[3.0; 3]; 8], 8, 10f64.sqrt());
+        // As above: 2.6, where the pass's own variance would give 1.82.
+        let (pixels, _) = prior.combine(8, &s, &q);
+        for p in &pixels {
+            assert!((p[0] - 2.6).abs() < 1e-5, "{p:?}");
+        }
+        let mut bytes = Vec::new();
+        prior.encode(&mut bytes);
+        let mut rest = bytes.as_slice();
+        let back = PriorSamples::decode(&mut rest, 8).unwrap();
+        assert!(rest.is_empty() && back == prior);
+        assert_eq!(back.combine(8, &s, &q), prior.combine(8, &s, &q));
+        // Cut anywhere, the encoding is refused, never misread.
+        for cut in [bytes.len() - 1, bytes.len() - 100, 100] {
+            assert!(PriorSamples::decode(&mut &bytes[..cut], 8).is_none(), "cut at {cut}");
+        }
     }
 
     #[test]

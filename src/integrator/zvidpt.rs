@@ -870,7 +870,7 @@ impl Integrator for LearnedZvidpt {
                 self.path = Some(path.clone());
             }
         }
-        prior.finish();
+        // The last pass stays unweighed: the image weighs it against the final passes.
         self.prior = (!prior.is_empty()).then_some(prior);
         let stats = guide.stats();
         self.guide = Some(guide);
