@@ -104,16 +104,16 @@ pub fn reference_noise(images: &[Image]) -> Result<Option<f64>> {
     for other in &images[1..] {
         same_size(&images[0], other)?;
     }
-    let kf = k as f64;
-    let mut sum = 0.0f64;
-    for i in 0..images[0].pixels.len() {
-        for c in 0..3 {
-            let mean = images.iter().map(|im| f64::from(im.pixels[i][c])).sum::<f64>() / kf;
-            let s2 = images.iter().map(|im| (f64::from(im.pixels[i][c]) - mean).powi(2)).sum::<f64>() / (kf - 1.0);
-            sum += s2 / kf;
-        }
-    }
+    let sum: f64 = (0..images[0].pixels.len()).map(|i| (0..3).map(|c| noise_of_mean(images, i, c)).sum::<f64>()).sum();
     Ok(Some(sum / (3 * images[0].pixels.len()).max(1) as f64))
+}
+
+/// The variance of the mean of `k ≥ 2` independent renders at pixel `i`, channel `c`, from
+/// their spread: their unbiased sample variance over `k`.
+fn noise_of_mean(images: &[Image], i: usize, c: usize) -> f64 {
+    let k = images.len() as f64;
+    let mean = images.iter().map(|im| f64::from(im.pixels[i][c])).sum::<f64>() / k;
+    images.iter().map(|im| (f64::from(im.pixels[i][c]) - mean).powi(2)).sum::<f64>() / (k - 1.0) / k
 }
 
 /// The squared error of the brightest `fraction` of the reference's pixels (by mean over
@@ -130,18 +130,11 @@ pub fn split_by_brightness(image: &Image, references: &[Image], fraction: f64) -
     let lum = |i: usize| reference.pixels[i].iter().map(|&x| f64::from(x)).sum::<f64>();
     order.sort_unstable_by(|&a, &b| lum(b).total_cmp(&lum(a)));
     let bright = ((n as f64 * fraction.clamp(0.0, 1.0)).round() as usize).min(n);
-    let k = references.len() as f64;
     let error = |i: usize| {
         (0..3)
             .map(|c| {
                 let d = (f64::from(image.pixels[i][c]) - f64::from(reference.pixels[i][c])).powi(2);
-                let noise = if references.len() < 2 {
-                    0.0
-                } else {
-                    let m = f64::from(reference.pixels[i][c]);
-                    references.iter().map(|r| (f64::from(r.pixels[i][c]) - m).powi(2)).sum::<f64>() / (k - 1.0) / k
-                };
-                d - noise
+                d - if references.len() < 2 { 0.0 } else { noise_of_mean(references, i, c) }
             })
             .sum::<f64>()
     };
