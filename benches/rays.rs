@@ -69,7 +69,7 @@ fn secondary_rays(scene: &Scene, accel: &BvhAccel, primary: &[Ray]) -> (Vec<Ray>
         let Some(hit) = accel.intersect(&ray) else { continue };
         let si = scene.interaction(&ray, &hit);
         bounce.push(si.spawn_ray(Frame::from_normal(si.n).to_world(warp::cosine_hemisphere(rng.next_2d()))));
-        let target = match scene.emit_photon(rng.next_f32(), rng.next_2d(), rng.next_2d()) {
+        let target = match scene.lights.emit_photon(rng.next_f32(), rng.next_2d(), rng.next_2d()) {
             Some((r, _)) => r.origin,
             None => Vec3A::new(rng.next_f32() - 0.5, 3.0, rng.next_f32() - 0.5),
         };

@@ -22,8 +22,8 @@ mod common;
 use common::*;
 use zvidpt::accel::BvhAccel;
 use zvidpt::integrator::PathTracer;
+use zvidpt::light::LightSampling;
 use zvidpt::render::{RenderSettings, render};
-use zvidpt::scene::LightSampling;
 use zvidpt::stats::family_z_bound;
 
 #[test]

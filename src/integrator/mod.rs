@@ -21,8 +21,9 @@ pub use zvidpt_paper::{Estimator, MAX_SUBPIXELS, Zvidpt};
 use crate::accel::Accel;
 use crate::film::PriorSamples;
 use crate::geometry::{Frame, Ray, UVec2, Vec3A, offset_ray_origin};
+use crate::light::{LightSampling, Receiver};
 use crate::sampler::SampleStream;
-use crate::scene::{LightSampling, Scene, SurfaceInteraction};
+use crate::scene::{Scene, SurfaceInteraction};
 
 /// What an integrator sees while rendering.
 pub struct RenderContext<'a, A: Accel> {
@@ -229,7 +230,7 @@ pub fn direct_light_against<A: Accel>(
     let u_point = rng.next_2d();
     let bsdf = &si.material.bsdf;
     let strategy = nee_strategy(ctx.light_sampling, si);
-    let Some(light) = ctx.scene.sample_emitter_from(si.p, si.n, strategy, u_pick, u_point) else {
+    let Some(light) = ctx.scene.lights.sample(&Receiver { x: si.p, n: si.n, strategy }, u_pick, u_point) else {
         return Vec3A::ZERO;
     };
     let dir = if light.infinite { light.p } else { (light.p - si.p).normalize_or_zero() };

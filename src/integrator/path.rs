@@ -9,6 +9,7 @@ use super::{
 };
 use crate::accel::Accel;
 use crate::geometry::{Frame, UVec2, Vec3A};
+use crate::light::Receiver;
 use crate::sampler::{SampleStream, survival_probability};
 use crate::scene::SurfaceInteraction;
 
@@ -135,7 +136,7 @@ pub(crate) fn trace_path<A: Accel, const NEE_ONLY: bool, const BOUNDED: bool>(
         return Vec3A::ZERO;
     }
     let Some(hit) = ctx.accel.intersect(&ray) else {
-        return ctx.scene.environment(ray.dir);
+        return ctx.scene.lights.environment(ray.dir);
     };
     let mut si = ctx.scene.interaction(&ray, &hit);
     let mut radiance = si.emitted();
@@ -178,11 +179,11 @@ pub(crate) fn trace_path<A: Accel, const NEE_ONLY: bool, const BOUNDED: bool>(
                 break;
             }
             // Escaped: the environment, counted as emission found by this direction is.
-            let env = ctx.scene.environment(s.dir);
+            let env = ctx.scene.lights.environment(s.dir);
             if s.delta {
                 radiance += throughput * env;
             } else if weigh.environment && env != Vec3A::ZERO {
-                radiance += throughput * env * power_heuristic(s.pdf, ctx.scene.environment_pdf(s.dir));
+                radiance += throughput * env * power_heuristic(s.pdf, ctx.scene.lights.environment_pdf(s.dir));
             }
             break;
         };
@@ -194,7 +195,8 @@ pub(crate) fn trace_path<A: Accel, const NEE_ONLY: bool, const BOUNDED: bool>(
                 radiance += throughput * emitted;
             } else if weigh.surfaces {
                 let strategy = nee_strategy(ctx.light_sampling, &si);
-                let p_light = ctx.scene.emitter_pdf(si.p, si.n, strategy, next.prim, next.p);
+                let p_light =
+                    ctx.scene.lights.triangle_pdf(&Receiver { x: si.p, n: si.n, strategy }, next.prim, next.p);
                 radiance += throughput * emitted * power_heuristic(s.pdf, p_light);
             }
         }

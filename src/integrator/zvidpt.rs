@@ -28,6 +28,7 @@ use crate::accel::Accel;
 use crate::film::{PriorSamples, mean_variance};
 use crate::geometry::{Frame, UVec2, Vec3A, luminance, warp};
 use crate::learned_guide::{Deposits, LearnedGuide, mixture_pdf};
+use crate::light::Receiver;
 use crate::photon::PhotonMap;
 use crate::sampler::{Domain, SampleStream, survival_probability};
 use crate::scene::SurfaceInteraction;
@@ -522,7 +523,7 @@ impl LearnedZvidpt {
         let Some(hit) = ctx.accel.intersect(&ray) else {
             // The environment: all of it behind a delta lobe, else its share against NEE.
             let env = if s.delta {
-                ctx.scene.environment(s.dir)
+                ctx.scene.lights.environment(s.dir)
             } else if weigh.environment {
                 found_environment(ctx, s.dir, s.pdf)
             } else {
@@ -569,7 +570,11 @@ impl LearnedZvidpt {
             return emitted;
         }
         let strategy = nee_strategy(ctx.light_sampling, si);
-        emitted * power_heuristic(pdf, ctx.scene.emitter_pdf(si.p, si.n, strategy, next.prim, next.p))
+        emitted
+            * power_heuristic(
+                pdf,
+                ctx.scene.lights.triangle_pdf(&Receiver { x: si.p, n: si.n, strategy }, next.prim, next.p),
+            )
     }
 
     /// The pixel's reference indirect radiance (summed over channels) for the weight window:
@@ -618,7 +623,7 @@ impl LearnedZvidpt {
             return Vec3A::ZERO;
         }
         let Some(hit) = ctx.accel.intersect(&ray) else {
-            return ctx.scene.environment(ray.dir);
+            return ctx.scene.lights.environment(ray.dir);
         };
         let si = ctx.scene.interaction(&ray, &hit);
         si.emitted() + self.reflected(ctx, guide, &si, Vec3A::ONE, reference, 0, 1, rng, scratch, deposits)
@@ -778,8 +783,8 @@ impl LearnedZvidpt {
 /// The environment seen along `dir`, sampled with density `pdf`, weighed against NEE's.
 #[inline]
 fn found_environment<A: Accel>(ctx: &RenderContext<A>, dir: Vec3A, pdf: f32) -> Vec3A {
-    let env = ctx.scene.environment(dir);
-    if env == Vec3A::ZERO { env } else { env * power_heuristic(pdf, ctx.scene.environment_pdf(dir)) }
+    let env = ctx.scene.lights.environment(dir);
+    if env == Vec3A::ZERO { env } else { env * power_heuristic(pdf, ctx.scene.lights.environment_pdf(dir)) }
 }
 
 impl Integrator for LearnedZvidpt {

@@ -117,7 +117,7 @@ impl Integrator for Zvidpt {
                     let lr = radiance_estimate(si.material.albedo(), guide.density_at(&si).all);
                     luminance(si.emitted() + lr)
                 }
-                None => luminance(ctx.scene.environment(ray.dir)),
+                None => luminance(ctx.scene.lights.environment(ray.dir)),
             };
         }
         crate::photon::grid::weights_to_cdf(&mut cdf[..n], self.pixel_floor);
@@ -146,7 +146,7 @@ impl Integrator for Zvidpt {
         scratch.rays += 1;
         let weight = Vec3A::splat(1.0 / (n as f32 * pj));
         let Some(hit) = ctx.accel.intersect(&ray) else {
-            return weight * ctx.scene.environment(ray.dir);
+            return weight * ctx.scene.lights.environment(ray.dir);
         };
         let si = ctx.scene.interaction(&ray, &hit);
         let mut grid = std::mem::take(&mut scratch.grid);
@@ -213,7 +213,7 @@ impl Zvidpt {
             scratch.rays += 1;
             let Some(hit) = ctx.accel.intersect(&ray) else {
                 // The environment behind a delta lobe (NEE counts it elsewhere).
-                return if s.delta { result + weight * ctx.scene.environment(s.dir) } else { result };
+                return if s.delta { result + weight * ctx.scene.lights.environment(s.dir) } else { result };
             };
             si = ctx.scene.interaction(&ray, &hit);
             if s.delta {

@@ -2,7 +2,8 @@
 //! (pbrt's `distant`, Mitsuba's `directional`). `irradiance` is the power per unit area on a
 //! surface facing the light. Like point lights they are delta lights: next event estimation
 //! reaches them with one deterministic connection, and no path hits them by chance.
-use crate::geometry::{Frame, Vec2, Vec3A, warp};
+use super::{Light, LightSample, Receiver};
+use crate::geometry::{Frame, Ray, Vec2, Vec3A, luminance, warp};
 use std::f32::consts::PI;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -44,6 +45,36 @@ impl DistantLight {
         let disc = warp::uniform_disk(u) * radius;
         let origin = centre - self.direction * radius + frame.s * disc.x + frame.t * disc.y;
         (origin, self.direction, self.power_through(radius))
+    }
+}
+
+impl Light for DistantLight {
+    /// As a light at infinity: `p` is the direction towards it.
+    fn sample_from(&self, _: &Receiver, _: f32, _: Vec2, pick: f32) -> Option<LightSample> {
+        Some(LightSample {
+            prim: u32::MAX,
+            delta: true,
+            infinite: true,
+            p: -self.direction,
+            p_err: Vec3A::ZERO,
+            ng: self.direction,
+            emission: self.irradiance,
+            inv_pdf: 1.0 / pick,
+        })
+    }
+
+    fn pdf_from(&self, _: &Receiver, _: u32, _: Vec3A) -> f32 {
+        0.0
+    }
+
+    fn luminous_power(&self, radius: f32) -> f32 {
+        let p = self.power_through(radius);
+        luminance(p).max(1e-6 * p.max_element())
+    }
+
+    fn emit_photon(&self, _: f32, u_point: Vec2, _: Vec2, bounds: (Vec3A, f32), pick: f32) -> Option<(Ray, Vec3A)> {
+        let (origin, dir, flux) = self.emit(bounds.0, bounds.1, u_point);
+        Some((Ray::new(origin, dir), flux / pick))
     }
 }
 

@@ -20,9 +20,10 @@
 //! map's own frame turned into the world by a rotation. Sampling stays the piecewise-constant
 //! density above (the map's luminance per band): `pdf` is that density, so weights stay exact
 //! while radiance is interpolated.
+use super::{Light, LightSample, Receiver};
 use crate::film::Image;
 use crate::geometry::warp::Discrete;
-use crate::geometry::{Vec2, Vec3A, luminance};
+use crate::geometry::{Frame, Ray, Vec2, Vec3A, luminance, warp};
 use std::f32::consts::{PI, TAU};
 
 /// A sampled direction towards the environment.
@@ -206,6 +207,45 @@ impl Environment {
     #[must_use]
     pub fn luminous_integral(&self) -> f32 {
         self.total
+    }
+}
+
+impl Light for Environment {
+    /// A direction by the map's sampling: `p` is the direction towards it.
+    fn sample_from(&self, _: &Receiver, _: f32, u_point: Vec2, pick: f32) -> Option<LightSample> {
+        let s = self.sample(u_point)?;
+        Some(LightSample {
+            prim: u32::MAX,
+            delta: false,
+            infinite: true,
+            p: s.direction,
+            p_err: Vec3A::ZERO,
+            ng: -s.direction,
+            emission: s.radiance,
+            inv_pdf: 1.0 / (pick * s.pdf),
+        })
+    }
+
+    /// The density of direction `d`.
+    fn pdf_from(&self, _: &Receiver, _: u32, d: Vec3A) -> f32 {
+        self.pdf(d)
+    }
+
+    /// `π r² ∫ lum(L) dω`: what a disc of the bounding sphere sees (pbrt's measure).
+    fn luminous_power(&self, radius: f32) -> f32 {
+        PI * radius * radius * self.luminous_integral()
+    }
+
+    /// A direction by the map's sampling (`u_dir`), entering through a uniform point
+    /// (`u_point`) of the disc of the bounding sphere facing it.
+    fn emit_photon(&self, _: f32, u_point: Vec2, u_dir: Vec2, bounds: (Vec3A, f32), pick: f32) -> Option<(Ray, Vec3A)> {
+        let s = self.sample(u_dir)?;
+        let (centre, radius) = bounds;
+        let disc = warp::uniform_disk(u_point) * radius;
+        let frame = Frame::from_normal(s.direction);
+        let origin = centre + s.direction * radius + frame.s * disc.x + frame.t * disc.y;
+        let flux = s.radiance * (PI * radius * radius / (s.pdf * pick));
+        Some((Ray::new(origin, -s.direction), flux))
     }
 }
 

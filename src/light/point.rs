@@ -5,7 +5,8 @@
 //! A spot light's profile follows Mitsuba 3's `spot`: full intensity within `beam_width` of
 //! its axis, falling linearly *in angle* to zero at `cutoff_angle` (defaults 20° and ¾ of the
 //! cutoff), so scenes imported from Mitsuba match.
-use crate::geometry::{Frame, Vec2, Vec3A};
+use super::{Light, LightSample, Receiver};
+use crate::geometry::{Frame, Ray, Vec2, Vec3A, luminance};
 use std::f32::consts::{PI, TAU};
 
 /// The cone of a spot light.
@@ -101,7 +102,7 @@ impl PointLight {
     /// The light as seen from `x`; `None` at the light itself or where it sends nothing.
     #[inline]
     #[must_use]
-    pub fn sample_from(&self, x: Vec3A) -> Option<PointSample> {
+    pub fn arrival(&self, x: Vec3A) -> Option<PointSample> {
         let to = self.position - x;
         let d2 = to.length_squared();
         let distance = d2.sqrt();
@@ -142,6 +143,36 @@ impl PointLight {
             Some(s) => TAU * (1.0 - (s.cutoff.sin() - s.beam.sin()) / (s.cutoff - s.beam)),
         };
         self.intensity * solid
+    }
+}
+
+impl Light for PointLight {
+    /// The one connection to the light (`p` its position), weighed by `1/pick`.
+    fn sample_from(&self, at: &Receiver, _: f32, _: Vec2, pick: f32) -> Option<LightSample> {
+        let l = self.arrival(at.x)?;
+        Some(LightSample {
+            prim: u32::MAX,
+            delta: true,
+            infinite: false,
+            p: self.position,
+            p_err: Vec3A::ZERO,
+            ng: -l.direction,
+            emission: l.irradiance,
+            inv_pdf: 1.0 / pick,
+        })
+    }
+
+    fn pdf_from(&self, _: &Receiver, _: u32, _: Vec3A) -> f32 {
+        0.0
+    }
+
+    fn luminous_power(&self, _radius: f32) -> f32 {
+        luminance(self.power()).max(1e-6 * self.power().max_element())
+    }
+
+    fn emit_photon(&self, _: f32, _: Vec2, u_dir: Vec2, _: (Vec3A, f32), pick: f32) -> Option<(Ray, Vec3A)> {
+        let e = self.emit(u_dir);
+        Some((Ray::new(e.origin, e.direction), e.weight / pick))
     }
 }
 
@@ -190,12 +221,12 @@ mod tests {
     #[test]
     fn what_a_point_receives() {
         let s = spot();
-        let got = s.sample_from(Vec3A::ZERO).unwrap();
+        let got = s.arrival(Vec3A::ZERO).unwrap();
         assert_eq!(got.direction, Vec3A::Y);
         assert_eq!(got.distance, 2.0);
         assert_eq!(got.irradiance, Vec3A::new(3.0, 2.0, 1.0) / 4.0);
-        assert!(s.sample_from(Vec3A::new(5.0, 0.0, 0.0)).is_none());
-        assert!(s.sample_from(s.position).is_none());
+        assert!(s.arrival(Vec3A::new(5.0, 0.0, 0.0)).is_none());
+        assert!(s.arrival(s.position).is_none());
     }
 
     /// The photons' weights average to the closed-form power (10⁵ photons; the spot's weights

@@ -85,7 +85,7 @@ impl PhotonMap {
         let mut emitted = 0u64;
         // A scene whose photons all escape would never fill the map: give up after many paths.
         let max_paths = 1000 * target as u64 + 1_000_000;
-        if scene.has_emitters() && target > 0 {
+        if scene.lights.has_emitters() && target > 0 {
             'batches: while emitted < max_paths {
                 let batch: Vec<Vec<Photon>> = (emitted..emitted + PATHS_PER_BATCH)
                     .into_par_iter()
@@ -206,7 +206,7 @@ fn trace_photon_path<A: Accel>(scene: &Scene, accel: &A, seed: u64, index: u64) 
     let mut rng = SampleStream::in_domain(Domain::Photon, seed, index, 0);
     let mut out = Vec::new();
     let (u_pick, u_point) = (rng.next_f32(), rng.next_2d());
-    let Some((mut ray, mut flux)) = scene.emit_photon(u_pick, u_point, rng.next_2d()) else {
+    let Some((mut ray, mut flux)) = scene.lights.emit_photon(u_pick, u_point, rng.next_2d()) else {
         return out;
     };
     let mut bounce = 0u8;
@@ -274,7 +274,7 @@ mod tests {
         let accel = BvhAccel::build(&scene.triangles);
         let map = PhotonMap::build(&scene, &accel, 20_000, 1).unwrap();
         let direct: Vec3A = (0..map.len()).filter(|&i| map.bounce[i] == 0).map(|i| map.flux[i]).sum();
-        let power = scene.emitted_power();
+        let power = scene.lights.emitted_power();
         // Every path stores exactly one bounce-0 photon here, each of equal flux: exact.
         assert!(((direct - power).length() / power.length()) < 1e-3, "{direct} vs {power}");
         // Irradiance estimate inside the furnace: E = π·L_incident = π·1 everywhere, so the

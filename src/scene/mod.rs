@@ -1,5 +1,6 @@
-//! Scenes: triangles with diffuse materials and one-sided emitters, a pinhole camera, and the
-//! full shading record built once from a backend's preliminary [`Hit`].
+//! Scenes: triangles with their materials and textures, the lights ([`LightSet`]), a pinhole
+//! camera with its pixel filter, and the full shading record built once from a backend's
+//! preliminary [`Hit`]; descriptions, their importers and the build from them below.
 // The library's entry points: every public item documented (`cargo doc`).
 #![warn(missing_docs)]
 mod build;
@@ -7,22 +8,21 @@ mod camera;
 pub mod description;
 pub mod filter;
 pub mod import;
-mod lights;
+#[cfg(test)]
+mod light_tests;
 pub mod limits;
 mod materials;
 pub mod mesh;
 
 pub use camera::Camera;
 pub use description::RenderDescription;
-pub use lights::{DirectSample, FEW_EMITTERS, IN_FRONT_MARGIN, LightSampling, Lights, NEAR_RATIO};
-use lights::{EmitterPlane, Emitters};
 pub use mesh::{obj_triangles, ply_triangles};
 
-use crate::geometry::{Frame, Hit, Ray, Vec2, Vec3A, barycentric_error, luminance, offset_ray_origin, warp};
+use crate::geometry::{Frame, Hit, Ray, Vec2, Vec3A, barycentric_error, luminance, offset_ray_origin};
+use crate::light::{AreaLights, LightSet, Lights};
 use crate::material::Bsdf;
 use crate::material::microfacet::Microfacet;
 use crate::texture::Texture;
-use std::f32::consts::PI;
 use std::path::PathBuf;
 
 /// A surface's material: how it scatters ([`Bsdf`]) and what it emits (`emission`, one-sided
@@ -146,12 +146,9 @@ pub struct Scene {
     /// Per texture, a map of texture coordinates applied before it is read (Mitsuba's
     /// `to_uv`); empty when no texture has one.
     pub texture_uv: Vec<Option<glam::Affine2>>,
-    emitters: Emitters,
-    /// Point and spot lights, and the environment.
-    pub lights: Lights,
-    /// The choice between the emitting triangles (as one), each point light and the
-    /// environment, by power; `None` when nothing emits.
-    groups: Option<warp::Discrete>,
+    /// Every light (emitting triangles, point, spot and distant lights, the environment) and
+    /// the choice between them.
+    pub lights: LightSet,
     /// A sphere around everything (centre, radius): environment photons start on a disc of it.
     pub bounds: (Vec3A, f32),
     /// Non-fatal findings while loading (no emitter, degenerate triangles skipped).
@@ -278,34 +275,10 @@ impl Scene {
         mut warnings: Vec<String>,
     ) -> Self {
         let normals: Vec<Vec3A> = triangles.iter().map(|t| (t[1] - t[0]).cross(t[2] - t[0]).normalize()).collect();
-        let mut emitters = Emitters { index_of: vec![u32::MAX; triangles.len()], ..Emitters::default() };
-        let mut power = Vec::new();
-        for (i, t) in triangles.iter().enumerate() {
+        let area = AreaLights::new(&triangles, &normals, |i| {
             let m = &materials[triangle_material[i] as usize];
-            if m.is_emitter() {
-                emitters.index_of[i] = emitters.prims.len() as u32;
-                let area = 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length();
-                emitters.prims.push(i as u32);
-                emitters.areas.push(area);
-                emitters.two_sided.push(m.two_sided_emission);
-                emitters.emission.push(m.emission);
-                emitters.luminance.push(luminance(m.emission));
-                let centroid = (t[0] + t[1] + t[2]) / 3.0;
-                let radius = t.iter().map(|&v| (v - centroid).length()).fold(0.0f32, f32::max);
-                emitters.bounds.push((centroid, radius));
-                emitters.planes.push(EmitterPlane {
-                    v0: t[0],
-                    normal: normals[i],
-                    centroid,
-                    radius,
-                    v0_scale: t[0].abs().max_element(),
-                    two_sided: m.two_sided_emission,
-                });
-                let sides = if m.two_sided_emission { 2.0 } else { 1.0 };
-                power.push(sides * PI * area * luminance(m.emission).max(1e-6 * m.emission.max_element()));
-            }
-        }
-        emitters.choice = warp::Discrete::new(&power);
+            m.is_emitter().then_some((m.emission, m.two_sided_emission))
+        });
         // The bounding sphere of the geometry and the point lights.
         let (mut lo, mut hi) = (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY));
         for p in triangles.iter().flatten().chain(lights.points.iter().map(|l| &l.position)) {
@@ -316,19 +289,8 @@ impl Scene {
         } else {
             (Vec3A::ZERO, 1.0)
         };
-        // Light groups by power (luminance): the triangles as one, each point light, and the
-        // environment as seen by a disc of the bounding sphere (π r² ∫ L dω, pbrt's measure).
-        let mut group_power = vec![power.iter().sum::<f32>()];
-        group_power.extend(lights.points.iter().map(|l| luminance(l.power()).max(1e-6 * l.power().max_element())));
-        group_power.extend(lights.distant.iter().map(|l| {
-            let p = l.power_through(bounds.1);
-            luminance(p).max(1e-6 * p.max_element())
-        }));
-        if let Some(env) = &lights.environment {
-            group_power.push(PI * bounds.1 * bounds.1 * env.luminous_integral());
-        }
-        let groups = warp::Discrete::new(&group_power);
-        if groups.is_none() {
+        let lights = LightSet::new(area, lights, bounds);
+        if !lights.has_emitters() {
             warnings.push("the scene has no emitter: the image will be black".into());
         }
         let sources = vec![path.clone()];
@@ -343,9 +305,7 @@ impl Scene {
             attributes: Attributes::default(),
             textures: Vec::new(),
             texture_uv: Vec::new(),
-            emitters,
             lights,
-            groups,
             bounds,
             warnings,
             sources,

@@ -5,9 +5,10 @@
 use super::description::{LightKind, MapLayout, SceneDescription};
 use super::filter::{FilterShape, PixelFilter};
 use super::import::{Format, ImportOptions};
-use super::{Attributes, Camera, Lights, Scene};
+use super::{Attributes, Camera, Scene};
 use crate::geometry::{Vec2, Vec3A};
 use crate::io::read_text;
+use crate::light::Lights;
 use crate::light::envmap::Environment;
 use crate::light::point::PointLight;
 use crate::texture::Texture;
