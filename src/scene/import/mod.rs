@@ -7,7 +7,7 @@ use super::description::{CameraDescription, InlineMesh, MeshDescription, SceneDe
 use crate::error::{Error, Result};
 use glam::{DMat4, DVec3};
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::rc::Rc;
 
 /// Where an element or directive stands: file and line.
@@ -36,6 +36,50 @@ pub(crate) fn unsupported(strict: bool, warnings: &mut Vec<String>, at: &At, mes
     }
     warnings.push(format!("{at}: {message}"));
     Ok(())
+}
+
+/// Largest included file read (text), as for a scene file.
+const MAX_FILE_BYTES: u64 = 16 << 20;
+/// Deepest nesting of included files (a cycle stops here).
+const MAX_INCLUDE_DEPTH: usize = 16;
+/// Most files read in all (files that include each other many times over would otherwise
+/// multiply).
+const MAX_INCLUDES: usize = 1024;
+
+/// The include guard both importers share: how deep includes nest now, and every file read
+/// (the scene's sources, the main file first).
+pub(crate) struct Includes {
+    depth: usize,
+    /// Every file read, the main scene file first.
+    pub files: Vec<PathBuf>,
+}
+
+impl Includes {
+    /// The guard of a scene read from `main`.
+    pub(crate) fn new(main: &Path) -> Self {
+        Self { depth: 0, files: vec![main.to_path_buf()] }
+    }
+
+    /// Reads the file `path` included at `at`, refused where includes nest deeper than
+    /// [`MAX_INCLUDE_DEPTH`] or more than [`MAX_INCLUDES`] files were read; the caller reads
+    /// its text, then calls [`Includes::leave`].
+    pub(crate) fn enter(&mut self, path: &Path, at: &At) -> Result<String> {
+        if self.depth >= MAX_INCLUDE_DEPTH {
+            return Err(syntax(at, format!("includes nest deeper than {MAX_INCLUDE_DEPTH} (a cycle?)")));
+        }
+        if self.files.len() > MAX_INCLUDES {
+            return Err(syntax(at, format!("more than {MAX_INCLUDES} included files")));
+        }
+        let text = crate::io::read_text(path, MAX_FILE_BYTES, "included file")?;
+        self.files.push(path.to_path_buf());
+        self.depth += 1;
+        Ok(text)
+    }
+
+    /// The end of the file [`Includes::enter`] read.
+    pub(crate) fn leave(&mut self) {
+        self.depth -= 1;
+    }
 }
 
 /// What an importer produced: the description, its warnings and the files it read.

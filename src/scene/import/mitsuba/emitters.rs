@@ -51,7 +51,7 @@ impl Translator<'_, '_> {
                 // Mitsuba's map space is ours (+y up, u = atan2(x, −z)/2π): its rotation
                 // carries over.
                 let rotation = DMat4::from_cols(to_world.x_axis, to_world.y_axis, to_world.z_axis, DVec4::W);
-                let map = resolve(&self.reader.files[0], &e.at.file, &file).to_string_lossy().into_owned();
+                let map = resolve(&self.reader.includes.files[0], &e.at.file, &file).to_string_lossy().into_owned();
                 let env = EnvironmentDescription {
                     radiance: None,
                     map: Some(map),

@@ -33,7 +33,8 @@ use super::super::description::{
     TextureDescription, TextureKind, WrapDescription,
 };
 use super::{
-    At, ImportOptions, Imported, MAX_INSTANCED_TRIANGLES, Prototype, empty_description, syntax, to_rows, unsupported,
+    At, ImportOptions, Imported, Includes, MAX_INSTANCED_TRIANGLES, Prototype, empty_description, syntax, to_rows,
+    unsupported,
 };
 use crate::error::{Error, Result};
 use glam::{DMat4, DVec3, DVec4};
@@ -41,13 +42,6 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
 
-/// Largest included file read (text), as for a scene file.
-const MAX_FILE_BYTES: u64 = 16 << 20;
-/// Deepest nesting of `<include>`s (a cycle stops here).
-const MAX_INCLUDE_DEPTH: usize = 16;
-/// Most `<include>`s read in all (files that include each other many times over would
-/// otherwise multiply).
-const MAX_INCLUDES: usize = 1024;
 /// Deepest nesting of elements (roxmltree's own limit is far deeper; a recursive walk must
 /// not overflow the stack on a hostile file).
 const MAX_ELEMENT_DEPTH: usize = 64;
@@ -103,9 +97,8 @@ struct Reader<'o> {
     /// `<default>` values (the command line's `-D` take precedence).
     defaults: HashMap<String, String>,
     warnings: Vec<String>,
-    include_depth: usize,
-    /// Every file read (the scene's sources).
-    files: Vec<PathBuf>,
+    /// The include guard, with every file read (the scene's sources).
+    includes: Includes,
     /// The byte offsets of the newlines of each document being read, innermost include last:
     /// a node's line is a binary search, not a count from the start of its file.
     newlines: Vec<Vec<usize>>,
@@ -117,8 +110,7 @@ pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result
         options,
         defaults: HashMap::new(),
         warnings: Vec::new(),
-        include_depth: 0,
-        files: vec![path.to_path_buf()],
+        includes: Includes::new(path),
         newlines: Vec::new(),
     };
     let root = reader.read_document(path, text)?;
@@ -134,7 +126,7 @@ pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result
     };
     t.translate(&root)?;
     let description = t.out;
-    Ok(Imported { description, warnings: reader.warnings, sources: reader.files })
+    Ok(Imported { description, warnings: reader.warnings, sources: reader.includes.files })
 }
 
 /// Turns the object tree into a scene description.

@@ -113,18 +113,10 @@ impl Reader<'_> {
                 }
                 "include" => {
                     let name = self.required(child, "filename", &at)?;
-                    let path = resolve(&self.files[0], file, &name);
-                    if self.include_depth >= MAX_INCLUDE_DEPTH {
-                        return Err(syntax(&at, format!("includes nest deeper than {MAX_INCLUDE_DEPTH} (a cycle?)")));
-                    }
-                    if self.files.len() > MAX_INCLUDES {
-                        return Err(syntax(&at, format!("more than {MAX_INCLUDES} included files")));
-                    }
-                    let text = crate::io::read_text(&path, MAX_FILE_BYTES, "included file")?;
-                    self.files.push(path.clone());
-                    self.include_depth += 1;
+                    let path = resolve(&self.includes.files[0], file, &name);
+                    let text = self.includes.enter(&path, &at)?;
                     let included = self.read_document(&path, &text)?;
-                    self.include_depth -= 1;
+                    self.includes.leave();
                     obj.params.extend(included.params);
                     obj.children.extend(included.children);
                 }

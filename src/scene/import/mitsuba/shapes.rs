@@ -130,7 +130,7 @@ impl Translator<'_, '_> {
                 let face_normals = self.boolean(s, "face_normals", false)?;
                 // Mitsuba flips an OBJ's `v` by default (its bitmaps start at the top).
                 let flip_v = s.plugin == "obj" && self.boolean(s, "flip_tex_coords", true)?;
-                let path = resolve(&self.reader.files[0], &s.at.file, &file).to_string_lossy().into_owned();
+                let path = resolve(&self.reader.includes.files[0], &s.at.file, &file).to_string_lossy().into_owned();
                 let (obj, ply) = if s.plugin == "obj" { (Some(path), None) } else { (None, Some(path)) };
                 self.out.meshes.push(MeshDescription {
                     obj,

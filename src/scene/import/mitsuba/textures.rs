@@ -9,7 +9,7 @@ impl Translator<'_, '_> {
             "bitmap" => {
                 self.check_params(t, &["filename", "filter_type", "wrap_mode", "raw", "to_uv"])?;
                 let file = self.text(t, "filename")?.ok_or_else(|| syntax(&t.at, "a bitmap needs `filename`"))?;
-                let path = resolve(&self.reader.files[0], &t.at.file, &file);
+                let path = resolve(&self.reader.includes.files[0], &t.at.file, &file);
                 let filter = match self.text(t, "filter_type")?.as_deref() {
                     None | Some("bilinear") => FilterDescription::Bilinear,
                     Some("nearest") => FilterDescription::Nearest,

@@ -1,6 +1,7 @@
 //! Area lights and light sources.
+use super::state::AreaLight;
 use super::tokens::{Cursor, Params};
-use super::{AreaLight, Colour, Parser};
+use super::{Colour, Parser};
 use crate::error::Result;
 use crate::scene::description::{EnvironmentDescription, LightDescription, MapLayout};
 use crate::scene::import::{At, syntax, to_rows};

@@ -1,18 +1,21 @@
 //! pbrt-v4 scenes, read into the same description a TOML scene file gives.
 //!
-//! A tokenizer of our own (the `pbrt4` crate panics on `Import` and does not load PLY), then
-//! the directives in order with pbrt's graphics state: the current transform (with named
-//! coordinate systems), `AttributeBegin`/`End`, `ReverseOrientation`, the current material
-//! (named or not) and area light. Each shape gets the material it was declared with (made
-//! emitting by the area light in force). Files named in the scene are relative to the main
-//! scene file's folder, as in pbrt.
+//! A tokenizer of our own (`tokens.rs`: the `pbrt4` crate panics on `Import` and does not load
+//! PLY), then the directives in order, each group in its own file: `state.rs` pbrt's graphics
+//! state (the current transform with named coordinate systems, `AttributeBegin`/`End`,
+//! `ReverseOrientation`, the current material and area light), `options.rs` camera, film,
+//! sampler, integrator and pixel filter, `materials.rs` materials and textures, `lights.rs`,
+//! `shapes.rs` shapes, curves, objects and instances; this file holds the parser's state,
+//! includes and the dispatch. Each shape gets the material it was declared with (made emitting
+//! by the area light in force). Files named in the scene are relative to the main scene
+//! file's folder, as in pbrt.
 //!
 //! Outside the subset: one warning naming the directive, its file and line, and the fallback
 //! (`strict`: an error).
 use super::super::description::{MaterialDescription, PixelFilterDescription, PixelFilterKind, SceneDescription};
-use super::{At, ImportOptions, Imported, Mark, Prototype, empty_description, syntax, unsupported};
+use super::{At, ImportOptions, Imported, Includes, Mark, Prototype, empty_description, syntax, unsupported};
 use crate::error::Result;
-use glam::{DMat4, DVec3};
+use glam::DMat4;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
@@ -22,15 +25,10 @@ mod lights;
 mod materials;
 mod options;
 mod shapes;
+mod state;
 mod tokens;
 
-/// Largest included file read (text), as for a scene file.
-const MAX_FILE_BYTES: u64 = 16 << 20;
-/// Deepest nesting of `Include`s (a cycle stops here), and most files read in all.
-const MAX_INCLUDE_DEPTH: usize = 16;
-const MAX_INCLUDES: usize = 1024;
-/// Deepest `AttributeBegin` nesting.
-const MAX_ATTRIBUTE_DEPTH: usize = 4096;
+use state::State;
 
 /// A colour-valued parameter: a constant, or a texture's name.
 enum Colour {
@@ -38,29 +36,13 @@ enum Colour {
     Texture(String),
 }
 
-#[derive(Clone, Debug)]
-struct AreaLight {
-    radiance: [f32; 3],
-    two_sided: bool,
-}
-
-/// pbrt's graphics state.
-#[derive(Clone, Debug)]
-struct State {
-    ctm: DMat4,
-    reverse: bool,
-    /// The current material's name among the description's materials.
-    material: String,
-    area_light: Option<AreaLight>,
-}
-
 struct Parser<'o> {
     options: &'o ImportOptions,
     /// The main scene file's folder: every file is relative to it.
     folder: PathBuf,
     warnings: Vec<String>,
-    files: Vec<PathBuf>,
-    include_depth: usize,
+    /// The include guard, with every file read (the scene's sources).
+    includes: Includes,
     state: State,
     stack: Vec<State>,
     named_frames: HashMap<String, DMat4>,
@@ -100,8 +82,7 @@ pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result
         options,
         folder,
         warnings: Vec::new(),
-        files: vec![path.to_path_buf()],
-        include_depth: 0,
+        includes: Includes::new(path),
         state: State { ctm: DMat4::IDENTITY, reverse: false, material: "default".into(), area_light: None },
         stack: Vec::new(),
         named_frames: HashMap::new(),
@@ -122,17 +103,7 @@ pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result
     };
     p.file(path, text)?;
     p.finish()?;
-    Ok(Imported { description: p.out, warnings: p.warnings, sources: p.files })
-}
-
-/// pbrt's `LookAt`: camera space's +z towards the target, +y up, +x to `up × dir` (pbrt's
-/// image right).
-fn look_at(eye: DVec3, target: DVec3, up: DVec3) -> Option<DMat4> {
-    let dir = (target - eye).try_normalize()?;
-    let right = up.try_normalize()?.cross(dir).try_normalize()?;
-    let new_up = dir.cross(right);
-    // World from camera; the CTM is camera from world.
-    Some(DMat4::from_cols(right.extend(0.0), new_up.extend(0.0), dir.extend(0.0), eye.extend(1.0)).inverse())
+    Ok(Imported { description: p.out, warnings: p.warnings, sources: p.includes.files })
 }
 
 impl Parser<'_> {
@@ -171,15 +142,6 @@ impl Parser<'_> {
         Ok(())
     }
 
-    fn concat(&mut self, m: DMat4, at: &At) -> Result<()> {
-        let ctm = self.state.ctm * m;
-        if !ctm.is_finite() {
-            return Err(syntax(at, "the transform is not finite"));
-        }
-        self.state.ctm = ctm;
-        Ok(())
-    }
-
     fn directive(&mut self, d: &str, c: &mut Cursor, at: &At) -> Result<()> {
         let known = self.state_directive(d, c, at)?
             || self.include_directive(d, c, at)?
@@ -192,119 +154,15 @@ impl Parser<'_> {
         if known { Ok(()) } else { Err(syntax(at, format!("unknown directive {d}"))) }
     }
 
-    /// The graphics state: transforms, named coordinate systems, attribute blocks, motion.
-    fn state_directive(&mut self, d: &str, c: &mut Cursor, at: &At) -> Result<bool> {
-        match d {
-            "Identity" => self.state.ctm = DMat4::IDENTITY,
-            "Translate" => {
-                let v = c.numbers(3, d)?;
-                self.concat(DMat4::from_translation(DVec3::new(v[0], v[1], v[2])), at)?;
-            }
-            "Scale" => {
-                let v = c.numbers(3, d)?;
-                self.concat(DMat4::from_scale(DVec3::new(v[0], v[1], v[2])), at)?;
-            }
-            "Rotate" => {
-                let v = c.numbers(4, d)?;
-                let axis = DVec3::new(v[1], v[2], v[3])
-                    .try_normalize()
-                    .ok_or_else(|| syntax(at, "Rotate needs a non-zero axis"))?;
-                self.concat(DMat4::from_axis_angle(axis, v[0].to_radians()), at)?;
-            }
-            "LookAt" => {
-                let v = c.numbers(9, d)?;
-                let m =
-                    look_at(DVec3::new(v[0], v[1], v[2]), DVec3::new(v[3], v[4], v[5]), DVec3::new(v[6], v[7], v[8]))
-                        .ok_or_else(|| syntax(at, "LookAt: the eye is on the target, or up is parallel to the view"))?;
-                self.concat(m, at)?;
-            }
-            "Transform" | "ConcatTransform" => {
-                let v = c.bracketed_numbers(16, d)?;
-                // pbrt's 16 numbers are the matrix's columns.
-                let m = DMat4::from_cols_array(&v.try_into().expect("16 numbers"));
-                if d == "Transform" {
-                    self.state.ctm = DMat4::IDENTITY;
-                }
-                self.concat(m, at)?;
-            }
-            "CoordinateSystem" => {
-                let name = c.text(d)?;
-                self.named_frames.insert(name, self.state.ctm);
-            }
-            "CoordSysTransform" => {
-                let name = c.text(d)?;
-                match self.named_frames.get(&name) {
-                    Some(m) => self.state.ctm = *m,
-                    None => self
-                        .unsupported(at, format!("CoordSysTransform \"{name}\": no such coordinate system: ignored"))?,
-                }
-            }
-            "ReverseOrientation" => self.state.reverse = !self.state.reverse,
-            "AttributeBegin" | "TransformBegin" => {
-                if self.stack.len() >= MAX_ATTRIBUTE_DEPTH {
-                    return Err(syntax(at, format!("{d} nests deeper than {MAX_ATTRIBUTE_DEPTH}")));
-                }
-                self.stack.push(self.state.clone());
-            }
-            "AttributeEnd" | "TransformEnd" => {
-                let saved = self.stack.pop().ok_or_else(|| syntax(at, format!("{d} without a matching begin")))?;
-                if d == "TransformEnd" {
-                    self.state.ctm = saved.ctm;
-                } else {
-                    self.state = saved;
-                }
-            }
-            "WorldBegin" => {
-                self.named_frames.insert("camera".into(), self.state.ctm);
-                self.state.ctm = DMat4::IDENTITY;
-            }
-            "WorldEnd" => {}
-            "TransformTimes" => {
-                let _ = c.numbers(2, d)?;
-            }
-            "ActiveTransform" => {
-                let at2 = c.at();
-                match c.next() {
-                    Some(Token::Word(w)) if w == "All" => {}
-                    Some(Token::Word(w)) if w == "StartTime" || w == "EndTime" => {
-                        self.unsupported(
-                            &at2,
-                            "ActiveTransform: motion blur is not supported; every transform applies".into(),
-                        )?;
-                    }
-                    other => {
-                        return Err(syntax(
-                            &at2,
-                            format!(
-                                "ActiveTransform: expected All, StartTime or EndTime, found {}",
-                                describe(other.as_ref())
-                            ),
-                        ));
-                    }
-                }
-            }
-            _ => return Ok(false),
-        }
-        Ok(true)
-    }
-
     /// `Include` and `Import`: the named file read in place.
     fn include_directive(&mut self, d: &str, c: &mut Cursor, at: &At) -> Result<bool> {
         match d {
             "Include" | "Import" => {
                 let name = c.text(d)?;
                 let path = self.resolve(&name);
-                if self.include_depth >= MAX_INCLUDE_DEPTH {
-                    return Err(syntax(at, format!("includes nest deeper than {MAX_INCLUDE_DEPTH} (a cycle?)")));
-                }
-                if self.files.len() > MAX_INCLUDES {
-                    return Err(syntax(at, format!("more than {MAX_INCLUDES} included files")));
-                }
-                let text = crate::io::read_text(&path, MAX_FILE_BYTES, "included file")?;
-                self.files.push(path.clone());
-                self.include_depth += 1;
+                let text = self.includes.enter(&path, at)?;
                 self.file(&path, &text)?;
-                self.include_depth -= 1;
+                self.includes.leave();
             }
             _ => return Ok(false),
         }

@@ -148,7 +148,7 @@ impl Parser<'_> {
             }
         }
         let (w, h, crop) = self.film;
-        let default_at = At { file: Rc::new(self.files[0].clone()), line: 1 };
+        let default_at = At { file: Rc::new(self.includes.files[0].clone()), line: 1 };
         if w < 1 || h < 1 || w > i64::from(u32::MAX) || h > i64::from(u32::MAX) {
             return Err(syntax(&default_at, format!("the film must be at least 1×1, got {w}×{h}")));
         }

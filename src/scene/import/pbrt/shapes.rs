@@ -1,6 +1,7 @@
 //! Shapes (meshes, PLY files, spheres, disks, curves) with their materials and area lights, and objects and their instances.
+use super::Parser;
+use super::state::MAX_ATTRIBUTE_DEPTH;
 use super::tokens::{Cursor, Params};
-use super::{MAX_ATTRIBUTE_DEPTH, Parser};
 use crate::error::Result;
 use crate::scene::description::{InlineMesh, MeshDescription, ShapeDescription, ShapeKind};
 use crate::scene::import::{At, Prototype, syntax, to_rows};
