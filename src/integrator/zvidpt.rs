@@ -22,12 +22,14 @@
 //! (`--integrator jensen --learned-guide on`).
 use super::mixture::{BSDF_SHARE, guides_at, sample_mixture};
 use super::path::{Mis, PathTracer};
-use super::{Integrator, RenderContext, Scratch, direct_light_against, nee_strategy, power_heuristic, sample_bsdf};
+use super::{
+    Integrator, RenderContext, Scratch, ShadingVertex, direct_light_against, nee_strategy, power_heuristic, sample_bsdf,
+};
 use crate::Result;
 use crate::accel::Accel;
 use crate::film::{PriorSamples, mean_variance};
 use crate::geometry::{Frame, UVec2, Vec3A, luminance, warp};
-use crate::learned_guide::{Deposits, LearnedGuide, mixture_pdf};
+use crate::learned_guide::{Deposits, DirectionDensities, LearnedGuide, mixture_pdf};
 use crate::light::Receiver;
 use crate::photon::PhotonMap;
 use crate::sampler::{Domain, SampleStream, survival_probability};
@@ -259,14 +261,8 @@ impl LearnedZvidpt {
     /// survival probability). Any positive value keeps the estimator unbiased, since each
     /// continuation is weighted by its inverse.
     #[inline]
-    fn continuation(
-        &self,
-        albedo: Vec3A,
-        weight: Vec3A,
-        reference: f32,
-        est: Option<crate::learned_guide::CellEstimate>,
-        depth: u32,
-    ) -> f32 {
+    fn continuation(&self, albedo: Vec3A, walk: WalkState, est: Option<crate::learned_guide::CellEstimate>) -> f32 {
+        let WalkState { weight, reference, depth, .. } = walk;
         let f = match self.settings.roulette {
             Roulette::Albedo => {
                 if depth >= 3 {
@@ -303,280 +299,6 @@ impl LearnedZvidpt {
         if depth >= 32 { f.min(0.8) } else { f }
     }
 
-    /// An unbiased estimate of `Lr` leaving `si` towards `si.wo`, from a walk (tree, when
-    /// split) carrying path weight `weight`; deposits what it learns when the guide learns.
-    #[allow(clippy::too_many_arguments)]
-    fn reflected<A: Accel>(
-        &self,
-        ctx: &RenderContext<A>,
-        guide: &LearnedGuide,
-        si: &SurfaceInteraction,
-        weight: Vec3A,
-        reference: f32,
-        depth: u32,
-        branches: u32,
-        rng: &mut SampleStream,
-        scratch: &mut Scratch,
-        mut deposits: Option<&mut Deposits>,
-    ) -> Vec3A {
-        let Some(albedo) = si.material.lambertian() else {
-            return self.reflected_bsdf(ctx, guide, si, weight, reference, depth, branches, rng, scratch, deposits);
-        };
-        // Light reaching this vertex ends a path of `depth + 2` segments.
-        if albedo == Vec3A::ZERO || depth.saturating_add(2) > ctx.max_depth {
-            return Vec3A::ZERO;
-        }
-        let frame = Frame::from_normal(si.n);
-        let cell = guide.cell(si.p, si.n);
-        let est = guide.estimate(cell);
-        let source = guide.source_box(cell).copied();
-        let (alpha, beta) = defensive_shares(
-            guide.mix(cell),
-            if source.is_some() { guide.box_share(cell) } else { 0.0 },
-            self.settings.defensive,
-        );
-        let learning = deposits.is_some();
-        let tree = alpha > 0.0 || (learning && guide.has_tree(cell));
-        // The source box, sampled first with probability `beta`; else the mixture of the
-        // tree (`alpha`) and cosine sampling (at least `defensive` of all directions).
-        let weigh = self.settings.mis.at(&si.material);
-        // NEE weighed against the density of the directions sampled below.
-        let density = |local: Vec3A, wi: Vec3A| {
-            if local.z <= 0.0 {
-                return 0.0;
-            }
-            let learned = if tree { guide.pdf(cell, local) } else { 0.0 };
-            let box_pdf = match source {
-                Some(b) if beta > 0.0 => b.pdf(si.p, wi),
-                _ => 0.0,
-            };
-            beta * box_pdf + (1.0 - beta) * mixture_pdf(alpha, learned, local.z)
-        };
-        let direct = direct_light_against(ctx, si, &frame, frame.to_local(si.wo), weigh, rng, scratch, density);
-        let mut f = self.continuation(albedo, weight, reference, est, depth);
-        if f > 1.0 && (depth >= 16 || branches * (f.ceil() as u32) > MAX_BRANCHES) {
-            f = 1.0;
-        }
-        // Stochastic rounding: n continuations with E[n] = f, each weighted 1/f.
-        let u = rng.next_f32();
-        let n = f.floor() as u32 + u32::from(u < f - f.floor());
-        let mut indirect = Vec3A::ZERO;
-        if n > 0 {
-            for _ in 0..n {
-                let u_pick = rng.next_f32();
-                let u_dir = rng.next_2d();
-                // Local directions (z = normal); the learned density from the leaf a guided
-                // direction came from, or looked up otherwise.
-                let (local, wi, learned) = match source {
-                    Some(b) if u_pick < beta => {
-                        let Some(wi) = b.sample(si.p, Vec3A::new(u_dir.x, u_dir.y, u_pick / beta)) else {
-                            continue;
-                        };
-                        let local = frame.to_local(wi);
-                        (local, wi, if tree && local.z > 0.0 { guide.pdf(cell, local) } else { 0.0 })
-                    }
-                    _ => {
-                        let u_pick = (u_pick - beta) / (1.0 - beta);
-                        let (local, learned) = if u_pick < alpha {
-                            guide.sample(cell, u_dir)
-                        } else {
-                            let w = warp::cosine_hemisphere(u_dir);
-                            (w, if tree { guide.pdf(cell, w) } else { 0.0 })
-                        };
-                        (local, frame.to_world(local), learned)
-                    }
-                };
-                let cos = local.z;
-                if cos <= 0.0 {
-                    continue;
-                }
-                // Needed where the box is sampled, or for the moments that learn `beta`.
-                let box_pdf = match source {
-                    Some(b) if beta > 0.0 || learning => b.pdf(si.p, wi),
-                    _ => 0.0,
-                };
-                let pdf = beta * box_pdf + (1.0 - beta) * mixture_pdf(alpha, learned, cos);
-                // f·cosθ/pdf for a Lambertian surface (the cosine at its shading normal).
-                let cos_s = cos * si.shading_ratio(wi, cos);
-                if cos_s <= 0.0 {
-                    continue;
-                }
-                let throughput = albedo * (cos_s * FRAC_1_PI / pdf);
-                let ray = si.spawn_ray(wi);
-                scratch.rays += 1;
-                let mut source_point = None;
-                let li = match ctx.accel.intersect(&ray) {
-                    Some(hit) => {
-                        let next = ctx.scene.interaction(&ray, &hit);
-                        source_point = Some(next.p);
-                        let seen = if weigh.surfaces { self.found_emission(ctx, si, &next, pdf) } else { Vec3A::ZERO };
-                        seen + self.reflected(
-                            ctx,
-                            guide,
-                            &next,
-                            weight * throughput / f,
-                            reference,
-                            depth + 1,
-                            branches * n,
-                            rng,
-                            scratch,
-                            deposits.as_deref_mut(),
-                        )
-                    }
-                    None if weigh.environment => found_environment(ctx, wi, pdf),
-                    None => Vec3A::ZERO,
-                };
-                indirect += throughput * li;
-                if let Some(d) = deposits.as_deref_mut() {
-                    // The zero-variance target f·cos·Lr: Σ_channels (ρ/π·Lr)·cos / pdf.
-                    let g = (albedo * li).element_sum() * cos_s * FRAC_1_PI;
-                    guide.deposit_direction(d, cell, local, g / pdf);
-                    guide.deposit_moments(d, cell, g, pdf, learned, cos * FRAC_1_PI, source.map(|_| box_pdf));
-                    if let Some(y) = source_point {
-                        guide.deposit_source(d, cell, y, g / pdf);
-                    }
-                }
-            }
-        }
-        // Roulette and splitting around the learned value (a control variate): a walk that
-        // stops returns `L̃ind`, and the continuations correct it, `X = L̃ind + Σᵢ(Sᵢ − L̃ind)/f`.
-        // E[X] = L̃ind + E[n]·(Lind − L̃ind)/f = Lind for any `L̃ind`, and a stopped walk costs
-        // `(Lind − L̃ind)²` instead of `Lind²`: with an exact `L̃` the roulette adds no noise,
-        // which is ALGORITHM.md's zero-variance termination in collision form. Only
-        // walk-learned values serve: a photon density from a starved map can be orders of
-        // magnitude off.
-        let cv = match est {
-            Some(e) if self.settings.control_variate && e.from_walks => e.indirect,
-            _ => Vec3A::ZERO,
-        };
-        let indirect = cv + (indirect - cv * n as f32) / f;
-        if let Some(d) = deposits {
-            guide.deposit_estimates(d, cell, si.p, direct, indirect);
-        }
-        direct + indirect
-    }
-
-    /// [`Self::reflected`] at a surface that is not Lambertian: NEE unless the BSDF is pure
-    /// delta, roulette by albedo after 3 vertices, directions from the BSDF's sampling mixed
-    /// with the cell's learned density where it has one ([`sample_mixture`]), emission behind a
-    /// delta lobe counted. The guide learns nothing here (its densities and estimates stand
-    /// for Lambertian surfaces), and the walk's continuation carries no control variate.
-    #[allow(clippy::too_many_arguments)]
-    fn reflected_bsdf<A: Accel>(
-        &self,
-        ctx: &RenderContext<A>,
-        guide: &LearnedGuide,
-        si: &SurfaceInteraction,
-        weight: Vec3A,
-        reference: f32,
-        depth: u32,
-        branches: u32,
-        rng: &mut SampleStream,
-        scratch: &mut Scratch,
-        deposits: Option<&mut Deposits>,
-    ) -> Vec3A {
-        let albedo = si.material.albedo();
-        if albedo == Vec3A::ZERO || depth.saturating_add(2) > ctx.max_depth {
-            return Vec3A::ZERO;
-        }
-        let frame = si.bsdf_frame();
-        let wi = frame.to_local(si.wo);
-        let cell = guide.cell(si.p, si.n);
-        let guide_frame = si.gather_frame(&frame);
-        let bsdf = &si.material.bsdf;
-        let guided = guides_at(bsdf) && guide.has_tree(cell);
-        let weigh = self.settings.mis.at(&si.material);
-        let direct = if bsdf.is_delta() {
-            Vec3A::ZERO
-        } else {
-            // NEE weighed against the density of the directions sampled below.
-            let density = |local: Vec3A, w: Vec3A| {
-                let p = bsdf.pdf(wi, local);
-                if guided { BSDF_SHARE * p + (1.0 - BSDF_SHARE) * guide.pdf(cell, guide_frame.to_local(w)) } else { p }
-            };
-            direct_light_against(ctx, si, &frame, wi, weigh, rng, scratch, density)
-        };
-        let q = if depth >= 3 { survival_probability(albedo) } else { 1.0 };
-        let q = if depth >= 32 { q.min(0.8) } else { q };
-        if rng.next_f32() >= q {
-            return direct;
-        }
-        let scatter = if guided {
-            sample_mixture(
-                si,
-                &frame,
-                wi,
-                &guide_frame,
-                rng,
-                |rng| guide.sample(cell, rng.next_2d()).0,
-                |w| guide.pdf(cell, w),
-            )
-        } else {
-            sample_bsdf(si, &frame, wi, rng)
-        };
-        let Some(s) = scatter else {
-            return direct;
-        };
-        let throughput = s.weight / q;
-        let ray = si.spawn_ray(s.dir);
-        scratch.rays += 1;
-        let Some(hit) = ctx.accel.intersect(&ray) else {
-            // The environment: all of it behind a delta lobe, else its share against NEE.
-            let env = if s.delta {
-                ctx.scene.lights.environment(s.dir)
-            } else if weigh.environment {
-                found_environment(ctx, s.dir, s.pdf)
-            } else {
-                Vec3A::ZERO
-            };
-            return direct + throughput * env;
-        };
-        let next = ctx.scene.interaction(&ray, &hit);
-        let seen = if s.delta {
-            next.emitted()
-        } else if weigh.surfaces {
-            self.found_emission(ctx, si, &next, s.pdf)
-        } else {
-            Vec3A::ZERO
-        };
-        let li = seen
-            + self.reflected(
-                ctx,
-                guide,
-                &next,
-                weight * throughput,
-                reference,
-                depth + 1,
-                branches,
-                rng,
-                scratch,
-                deposits,
-            );
-        direct + throughput * li
-    }
-
-    /// Emission at `next` found by a direction of density `pdf` sampled at `si`, weighed
-    /// against NEE's density of the same point (power heuristic).
-    #[inline]
-    fn found_emission<A: Accel>(
-        &self,
-        ctx: &RenderContext<A>,
-        si: &SurfaceInteraction,
-        next: &SurfaceInteraction,
-        pdf: f32,
-    ) -> Vec3A {
-        let emitted = next.emitted();
-        if emitted == Vec3A::ZERO {
-            return emitted;
-        }
-        let strategy = nee_strategy(ctx.light_sampling, si);
-        emitted
-            * power_heuristic(
-                pdf,
-                ctx.scene.lights.triangle_pdf(&Receiver { x: si.p, n: si.n, strategy }, next.prim, next.p),
-            )
-    }
-
     /// The pixel's reference indirect radiance (summed over channels) for the weight window:
     /// the mean learned `L̃ind` at the first hits of a few set-up rays.
     fn pixel_reference<A: Accel>(
@@ -601,32 +323,6 @@ impl LearnedZvidpt {
             }
         }
         (sum / SETUP_RAYS as f32).max(1e-4)
-    }
-
-    /// One camera sample: emission seen directly, plus the walk's estimate of `Lr`
-    /// (depositing what it learns into `deposits` in a training iteration).
-    #[allow(clippy::too_many_arguments)]
-    fn camera_sample<A: Accel>(
-        &self,
-        ctx: &RenderContext<A>,
-        guide: &LearnedGuide,
-        pixel: UVec2,
-        reference: f32,
-        rng: &mut SampleStream,
-        scratch: &mut Scratch,
-        deposits: Option<&mut Deposits>,
-    ) -> Vec3A {
-        let ray = ctx.scene.camera.ray(ctx.scene.camera.film_point(pixel, rng.pixel_2d()));
-        scratch.rays += 1;
-        // Paths of at most `max_depth` segments: the camera's is the first.
-        if ctx.max_depth == 0 {
-            return Vec3A::ZERO;
-        }
-        let Some(hit) = ctx.accel.intersect(&ray) else {
-            return ctx.scene.lights.environment(ray.dir);
-        };
-        let si = ctx.scene.interaction(&ray, &hit);
-        si.emitted() + self.reflected(ctx, guide, &si, Vec3A::ONE, reference, 0, 1, rng, scratch, deposits)
     }
 
     /// One training iteration over the whole image at `spp`; returns what its walks
@@ -658,9 +354,7 @@ impl LearnedZvidpt {
                         // aligned block: stratified by itself, and with the others).
                         for s in spp..2 * spp {
                             let mut rng = SampleStream::new(seed, y * width + x, s);
-                            let v = self.camera_sample(
-                                ctx,
-                                guide,
+                            let v = Walker { zvidpt: self, ctx, guide }.camera_sample(
                                 pixel,
                                 reference,
                                 &mut rng,
@@ -748,9 +442,13 @@ impl LearnedZvidpt {
                                 let key = 2 * u64::from(s) + u64::from(guide.is_some());
                                 let mut rng = SampleStream::in_domain(Domain::Probe, seed, index, key);
                                 let v = match guide {
-                                    Some(g) => {
-                                        self.camera_sample(ctx, g, pixel, reference, &mut rng, &mut scratch, None)
-                                    }
+                                    Some(g) => Walker { zvidpt: self, ctx, guide: g }.camera_sample(
+                                        pixel,
+                                        reference,
+                                        &mut rng,
+                                        &mut scratch,
+                                        None,
+                                    ),
                                     None => path.sample(ctx, pixel, &(), &mut rng, &mut scratch),
                                 };
                                 let v = if v.is_finite() { v } else { Vec3A::ZERO };
@@ -785,6 +483,323 @@ impl LearnedZvidpt {
 fn found_environment<A: Accel>(ctx: &RenderContext<A>, dir: Vec3A, pdf: f32) -> Vec3A {
     let env = ctx.scene.lights.environment(dir);
     if env == Vec3A::ZERO { env } else { env * power_heuristic(pdf, ctx.scene.lights.environment_pdf(dir)) }
+}
+
+/// What a learned walk carries from vertex to vertex.
+#[derive(Clone, Copy, Debug)]
+struct WalkState {
+    /// The path's weight so far (the product of the throughputs and continuation weights).
+    weight: Vec3A,
+    /// The pixel's reference indirect radiance, which the weight window compares against.
+    reference: f32,
+    /// Vertices before this one (0 at the camera's first hit).
+    depth: u32,
+    /// How many walks this one's splits have made of the camera sample so far.
+    branches: u32,
+}
+
+/// What a learned walk reads at every vertex: the integrator's settings, the render and the
+/// learned guide.
+struct Walker<'a, A: Accel> {
+    zvidpt: &'a LearnedZvidpt,
+    ctx: &'a RenderContext<'a, A>,
+    guide: &'a LearnedGuide,
+}
+
+impl<A: Accel> Walker<'_, A> {
+    /// One camera sample: emission seen directly, plus the walk's estimate of `Lr`
+    /// (depositing what it learns into `deposits` in a training iteration).
+    fn camera_sample(
+        &self,
+        pixel: UVec2,
+        reference: f32,
+        rng: &mut SampleStream,
+        scratch: &mut Scratch,
+        deposits: Option<&mut Deposits>,
+    ) -> Vec3A {
+        let ctx = self.ctx;
+        let ray = ctx.scene.camera.ray(ctx.scene.camera.film_point(pixel, rng.pixel_2d()));
+        scratch.rays += 1;
+        // Paths of at most `max_depth` segments: the camera's is the first.
+        if ctx.max_depth == 0 {
+            return Vec3A::ZERO;
+        }
+        let Some(hit) = ctx.accel.intersect(&ray) else {
+            return ctx.scene.lights.environment(ray.dir);
+        };
+        let si = ctx.scene.interaction(&ray, &hit);
+        si.emitted()
+            + self.reflected(
+                &si,
+                WalkState { weight: Vec3A::ONE, reference, depth: 0, branches: 1 },
+                rng,
+                scratch,
+                deposits,
+            )
+    }
+
+    /// An unbiased estimate of `Lr` leaving `si` towards `si.wo`, from a walk (tree, when
+    /// split) carrying path weight `weight`; deposits what it learns when the guide learns.
+    fn reflected(
+        &self,
+        si: &SurfaceInteraction,
+        walk: WalkState,
+        rng: &mut SampleStream,
+        scratch: &mut Scratch,
+        mut deposits: Option<&mut Deposits>,
+    ) -> Vec3A {
+        let Some(albedo) = si.material.lambertian() else {
+            return self.reflected_bsdf(si, walk, rng, scratch, deposits);
+        };
+        let (ctx, guide, settings) = (self.ctx, self.guide, &self.zvidpt.settings);
+        let WalkState { weight, depth, branches, .. } = walk;
+        // Light reaching this vertex ends a path of `depth + 2` segments.
+        if albedo == Vec3A::ZERO || depth.saturating_add(2) > ctx.max_depth {
+            return Vec3A::ZERO;
+        }
+        let frame = Frame::from_normal(si.n);
+        let cell = guide.cell(si.p, si.n);
+        let est = guide.estimate(cell);
+        let source = guide.source_box(cell).copied();
+        let (alpha, beta) = defensive_shares(
+            guide.mix(cell),
+            if source.is_some() { guide.box_share(cell) } else { 0.0 },
+            settings.defensive,
+        );
+        let learning = deposits.is_some();
+        let tree = alpha > 0.0 || (learning && guide.has_tree(cell));
+        // The source box, sampled first with probability `beta`; else the mixture of the
+        // tree (`alpha`) and cosine sampling (at least `defensive` of all directions).
+        let weigh = settings.mis.at(&si.material);
+        // NEE weighed against the density of the directions sampled below.
+        let density = |local: Vec3A, wi: Vec3A| {
+            if local.z <= 0.0 {
+                return 0.0;
+            }
+            let learned = if tree { guide.pdf(cell, local) } else { 0.0 };
+            let box_pdf = match source {
+                Some(b) if beta > 0.0 => b.pdf(si.p, wi),
+                _ => 0.0,
+            };
+            beta * box_pdf + (1.0 - beta) * mixture_pdf(alpha, learned, local.z)
+        };
+        let direct = direct_light_against(
+            ctx,
+            ShadingVertex { si, frame: &frame, wi: frame.to_local(si.wo) },
+            weigh,
+            rng,
+            scratch,
+            density,
+        );
+        let mut f = self.zvidpt.continuation(albedo, walk, est);
+        if f > 1.0 && (depth >= 16 || branches * (f.ceil() as u32) > MAX_BRANCHES) {
+            f = 1.0;
+        }
+        // Stochastic rounding: n continuations with E[n] = f, each weighted 1/f.
+        let u = rng.next_f32();
+        let n = f.floor() as u32 + u32::from(u < f - f.floor());
+        let mut indirect = Vec3A::ZERO;
+        if n > 0 {
+            for _ in 0..n {
+                let u_pick = rng.next_f32();
+                let u_dir = rng.next_2d();
+                // Local directions (z = normal); the learned density from the leaf a guided
+                // direction came from, or looked up otherwise.
+                let (local, wi, learned) = match source {
+                    Some(b) if u_pick < beta => {
+                        let Some(wi) = b.sample(si.p, Vec3A::new(u_dir.x, u_dir.y, u_pick / beta)) else {
+                            continue;
+                        };
+                        let local = frame.to_local(wi);
+                        (local, wi, if tree && local.z > 0.0 { guide.pdf(cell, local) } else { 0.0 })
+                    }
+                    _ => {
+                        let u_pick = (u_pick - beta) / (1.0 - beta);
+                        let (local, learned) = if u_pick < alpha {
+                            guide.sample(cell, u_dir)
+                        } else {
+                            let w = warp::cosine_hemisphere(u_dir);
+                            (w, if tree { guide.pdf(cell, w) } else { 0.0 })
+                        };
+                        (local, frame.to_world(local), learned)
+                    }
+                };
+                let cos = local.z;
+                if cos <= 0.0 {
+                    continue;
+                }
+                // Needed where the box is sampled, or for the moments that learn `beta`.
+                let box_pdf = match source {
+                    Some(b) if beta > 0.0 || learning => b.pdf(si.p, wi),
+                    _ => 0.0,
+                };
+                let pdf = beta * box_pdf + (1.0 - beta) * mixture_pdf(alpha, learned, cos);
+                // f·cosθ/pdf for a Lambertian surface (the cosine at its shading normal).
+                let cos_s = cos * si.shading_ratio(wi, cos);
+                if cos_s <= 0.0 {
+                    continue;
+                }
+                let throughput = albedo * (cos_s * FRAC_1_PI / pdf);
+                let ray = si.spawn_ray(wi);
+                scratch.rays += 1;
+                let mut source_point = None;
+                let li = match ctx.accel.intersect(&ray) {
+                    Some(hit) => {
+                        let next = ctx.scene.interaction(&ray, &hit);
+                        source_point = Some(next.p);
+                        let seen = if weigh.surfaces { self.found_emission(si, &next, pdf) } else { Vec3A::ZERO };
+                        let walk = WalkState {
+                            weight: weight * throughput / f,
+                            depth: depth + 1,
+                            branches: branches * n,
+                            ..walk
+                        };
+                        seen + self.reflected(&next, walk, rng, scratch, deposits.as_deref_mut())
+                    }
+                    None if weigh.environment => found_environment(ctx, wi, pdf),
+                    None => Vec3A::ZERO,
+                };
+                indirect += throughput * li;
+                if let Some(d) = deposits.as_deref_mut() {
+                    // The zero-variance target f·cos·Lr: Σ_channels (ρ/π·Lr)·cos / pdf.
+                    let g = (albedo * li).element_sum() * cos_s * FRAC_1_PI;
+                    guide.deposit_direction(d, cell, local, g / pdf);
+                    let p = DirectionDensities {
+                        drawn: pdf,
+                        tree: learned,
+                        cosine: cos * FRAC_1_PI,
+                        source: source.map(|_| box_pdf),
+                    };
+                    guide.deposit_moments(d, cell, g, p);
+                    if let Some(y) = source_point {
+                        guide.deposit_source(d, cell, y, g / pdf);
+                    }
+                }
+            }
+        }
+        // Roulette and splitting around the learned value (a control variate): a walk that
+        // stops returns `L̃ind`, and the continuations correct it, `X = L̃ind + Σᵢ(Sᵢ − L̃ind)/f`.
+        // E[X] = L̃ind + E[n]·(Lind − L̃ind)/f = Lind for any `L̃ind`, and a stopped walk costs
+        // `(Lind − L̃ind)²` instead of `Lind²`: with an exact `L̃` the roulette adds no noise,
+        // which is ALGORITHM.md's zero-variance termination in collision form. Only
+        // walk-learned values serve: a photon density from a starved map can be orders of
+        // magnitude off.
+        let cv = match est {
+            Some(e) if settings.control_variate && e.from_walks => e.indirect,
+            _ => Vec3A::ZERO,
+        };
+        let indirect = cv + (indirect - cv * n as f32) / f;
+        if let Some(d) = deposits {
+            guide.deposit_estimates(d, cell, si.p, direct, indirect);
+        }
+        direct + indirect
+    }
+
+    /// [`Self::reflected`] at a surface that is not Lambertian: NEE unless the BSDF is pure
+    /// delta, roulette by albedo after 3 vertices, directions from the BSDF's sampling mixed
+    /// with the cell's learned density where it has one ([`sample_mixture`]), emission behind a
+    /// delta lobe counted. The guide learns nothing here (its densities and estimates stand
+    /// for Lambertian surfaces), and the walk's continuation carries no control variate.
+    fn reflected_bsdf(
+        &self,
+        si: &SurfaceInteraction,
+        walk: WalkState,
+        rng: &mut SampleStream,
+        scratch: &mut Scratch,
+        deposits: Option<&mut Deposits>,
+    ) -> Vec3A {
+        let (ctx, guide, settings) = (self.ctx, self.guide, &self.zvidpt.settings);
+        let WalkState { weight, depth, .. } = walk;
+        let albedo = si.material.albedo();
+        if albedo == Vec3A::ZERO || depth.saturating_add(2) > ctx.max_depth {
+            return Vec3A::ZERO;
+        }
+        let frame = si.bsdf_frame();
+        let wi = frame.to_local(si.wo);
+        let cell = guide.cell(si.p, si.n);
+        let guide_frame = si.gather_frame(&frame);
+        let bsdf = &si.material.bsdf;
+        let guided = guides_at(bsdf) && guide.has_tree(cell);
+        let weigh = settings.mis.at(&si.material);
+        let direct = if bsdf.is_delta() {
+            Vec3A::ZERO
+        } else {
+            // NEE weighed against the density of the directions sampled below.
+            let density = |local: Vec3A, w: Vec3A| {
+                let p = bsdf.pdf(wi, local);
+                if guided { BSDF_SHARE * p + (1.0 - BSDF_SHARE) * guide.pdf(cell, guide_frame.to_local(w)) } else { p }
+            };
+            direct_light_against(ctx, ShadingVertex { si, frame: &frame, wi }, weigh, rng, scratch, density)
+        };
+        let q = if depth >= 3 { survival_probability(albedo) } else { 1.0 };
+        let q = if depth >= 32 { q.min(0.8) } else { q };
+        if rng.next_f32() >= q {
+            return direct;
+        }
+        let scatter = if guided {
+            sample_mixture(
+                si,
+                &frame,
+                wi,
+                &guide_frame,
+                rng,
+                |rng| guide.sample(cell, rng.next_2d()).0,
+                |w| guide.pdf(cell, w),
+            )
+        } else {
+            sample_bsdf(si, &frame, wi, rng)
+        };
+        let Some(s) = scatter else {
+            return direct;
+        };
+        let throughput = s.weight / q;
+        let ray = si.spawn_ray(s.dir);
+        scratch.rays += 1;
+        let Some(hit) = ctx.accel.intersect(&ray) else {
+            // The environment: all of it behind a delta lobe, else its share against NEE.
+            let env = if s.delta {
+                ctx.scene.lights.environment(s.dir)
+            } else if weigh.environment {
+                found_environment(ctx, s.dir, s.pdf)
+            } else {
+                Vec3A::ZERO
+            };
+            return direct + throughput * env;
+        };
+        let next = ctx.scene.interaction(&ray, &hit);
+        let seen = if s.delta {
+            next.emitted()
+        } else if weigh.surfaces {
+            self.found_emission(si, &next, s.pdf)
+        } else {
+            Vec3A::ZERO
+        };
+        let li = seen
+            + self.reflected(
+                &next,
+                WalkState { weight: weight * throughput, depth: depth + 1, ..walk },
+                rng,
+                scratch,
+                deposits,
+            );
+        direct + throughput * li
+    }
+
+    /// Emission at `next` found by a direction of density `pdf` sampled at `si`, weighed
+    /// against NEE's density of the same point (power heuristic).
+    #[inline]
+    fn found_emission(&self, si: &SurfaceInteraction, next: &SurfaceInteraction, pdf: f32) -> Vec3A {
+        let emitted = next.emitted();
+        if emitted == Vec3A::ZERO {
+            return emitted;
+        }
+        let (ctx, strategy) = (self.ctx, nee_strategy(self.ctx.light_sampling, si));
+        emitted
+            * power_heuristic(
+                pdf,
+                ctx.scene.lights.triangle_pdf(&Receiver { x: si.p, n: si.n, strategy }, next.prim, next.p),
+            )
+    }
 }
 
 impl Integrator for LearnedZvidpt {
@@ -933,7 +948,7 @@ impl Integrator for LearnedZvidpt {
             return path.sample(ctx, pixel, &(), rng, scratch);
         }
         let guide = self.guide.as_ref().expect("prepare() builds the guide");
-        self.camera_sample(ctx, guide, pixel, *reference, rng, scratch, None)
+        Walker { zvidpt: self, ctx, guide }.camera_sample(pixel, *reference, rng, scratch, None)
     }
 }
 

@@ -9,7 +9,7 @@
 //!
 //! The weights are `W0 = 1/(n·m·Pj)` and `W(k+1) = Wk · f·cosθ / (pdf(ωi)·(1 − qk))`.
 use super::photon_guided::{GuideSettings, PhotonGuide, radiance_estimate, termination_probability};
-use super::{Integrator, MisAt, RenderContext, Scratch, direct_light};
+use super::{Integrator, MisAt, RenderContext, Scratch, ShadingVertex, direct_light};
 use crate::Result;
 use crate::accel::Accel;
 use crate::geometry::{UVec2, Vec2, Vec3A, luminance};
@@ -149,16 +149,13 @@ impl Integrator for Zvidpt {
             return weight * ctx.scene.lights.environment(ray.dir);
         };
         let si = ctx.scene.interaction(&ray, &hit);
-        let mut grid = std::mem::take(&mut scratch.grid);
-        let value = self.walk(ctx, guide, si, weight, rng, scratch, &mut grid);
-        scratch.grid = grid;
-        value
+        self.walk(ctx, guide, si, weight, rng, scratch)
     }
 }
 
 impl Zvidpt {
-    /// The walk from the camera vertex `si` with weight `W0` (paper §4.2–§4.3).
-    #[allow(clippy::too_many_arguments)]
+    /// The walk from the camera vertex `si` with weight `W0` (paper §4.2–§4.3); the photon
+    /// guide's grids are built in `scratch`'s grid.
     #[inline]
     fn walk<A: Accel>(
         &self,
@@ -168,18 +165,18 @@ impl Zvidpt {
         mut weight: Vec3A,
         rng: &mut SampleStream,
         scratch: &mut Scratch,
-        grid: &mut Vec<f32>,
     ) -> Vec3A {
+        let mut grid = std::mem::take(&mut scratch.grid);
         let mut result = weight * si.emitted();
-        loop {
+        let value = loop {
             let albedo = si.material.albedo();
             // A surface that reflects nothing ends the walk: both branches below add zero.
             if albedo == Vec3A::ZERO {
-                return result;
+                break result;
             }
             let frame = si.bsdf_frame();
             let grid_frame = si.gather_frame(&frame);
-            let g = guide.at(&si, &grid_frame, grid);
+            let g = guide.at(&si, &grid_frame, &mut grid);
             let wi = frame.to_local(si.wo);
             // A pure delta surface has no `L̂1` (NEE cannot reach through it; the emission its
             // lobe finds is counted at the next vertex): the walk continues by albedo.
@@ -190,36 +187,42 @@ impl Zvidpt {
                 termination_probability(albedo, &g.density, self.q_min, self.q_max, self.q_kappa)
             };
             let direct = |rng: &mut SampleStream, scratch: &mut Scratch| {
-                if delta { Vec3A::ZERO } else { direct_light(ctx, &si, &frame, wi, MisAt::NONE, rng, scratch) }
+                if delta {
+                    Vec3A::ZERO
+                } else {
+                    direct_light(ctx, ShadingVertex { si: &si, frame: &frame, wi }, MisAt::NONE, rng, scratch)
+                }
             };
             match self.estimator {
                 Estimator::Terminal => {
                     if rng.next_f32() < q {
-                        return result + weight * direct(rng, scratch) / q;
+                        break result + weight * direct(rng, scratch) / q;
                     }
                 }
                 Estimator::Collision => {
                     result += weight * direct(rng, scratch);
                     if rng.next_f32() < q {
-                        return result;
+                        break result;
                     }
                 }
             }
             let Some(s) = guide.scatter(&g, &si, &grid_frame, &frame, wi, rng) else {
-                return result;
+                break result;
             };
             weight *= s.weight / (1.0 - q);
             let ray = si.spawn_ray(s.dir);
             scratch.rays += 1;
             let Some(hit) = ctx.accel.intersect(&ray) else {
                 // The environment behind a delta lobe (NEE counts it elsewhere).
-                return if s.delta { result + weight * ctx.scene.lights.environment(s.dir) } else { result };
+                break if s.delta { result + weight * ctx.scene.lights.environment(s.dir) } else { result };
             };
             si = ctx.scene.interaction(&ray, &hit);
             if s.delta {
                 result += weight * si.emitted();
             }
-        }
+        };
+        scratch.grid = grid;
+        value
     }
 }
 

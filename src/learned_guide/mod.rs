@@ -277,6 +277,19 @@ const MIN_HIGH_MIX_SAMPLES: u64 = 1024;
 const MIX_SWITCH_GAIN: f64 = 1.0;
 const MIN_MIX_SAMPLES: u64 = 64;
 
+/// The densities of one direction a walk drew at a vertex, for learning the cell's mixture.
+#[derive(Clone, Copy, Debug)]
+pub struct DirectionDensities {
+    /// The density it was drawn with.
+    pub drawn: f32,
+    /// The cell's tree's density of it.
+    pub tree: f32,
+    /// Cosine sampling's.
+    pub cosine: f32,
+    /// The source box's, where the cell has one.
+    pub source: Option<f32>,
+}
+
 impl LearnedGuide {
     /// The first guide, from the photon map: space split until a cell holds about
     /// `PHOTONS_PER_CELL` photons, directions from the indirect photons in each cell,
@@ -653,20 +666,10 @@ impl LearnedGuide {
     }
 
     /// Records, for the choice of `cell`'s mixture probability, one direction whose integrand
-    /// is `g` (`f·cos·Lr`, summed over channels), drawn with density `p_drawn`, where the tree
-    /// has density `p_tree` and cosine sampling `p_cos`.
+    /// is `g` (`f·cos·Lr`, summed over channels), drawn with the densities `p`.
     #[inline]
-    #[allow(clippy::too_many_arguments)]
-    pub fn deposit_moments(
-        &self,
-        d: &mut Deposits,
-        cell: usize,
-        g: f32,
-        p_drawn: f32,
-        p_tree: f32,
-        p_cos: f32,
-        p_box: Option<f32>,
-    ) {
+    pub fn deposit_moments(&self, d: &mut Deposits, cell: usize, g: f32, p: DirectionDensities) {
+        let DirectionDensities { drawn: p_drawn, tree: p_tree, cosine: p_cos, source: p_box } = p;
         if self.filling.is_none() || !self.learn_mix || !(g > 0.0 && p_drawn > 0.0) {
             return;
         }

@@ -1,6 +1,6 @@
 //! The light set of loaded scenes: next event estimation against exact integrals, its
 //! densities against the sampler's, photons against the emitted power.
-use super::Scene;
+use super::{Scene, Surfaces};
 use crate::geometry::Vec3A;
 use crate::light::{Environment, FEW_EMITTERS, LightSampling, Lights, PointLight, Receiver};
 use crate::sampler::SampleStream;
@@ -198,9 +198,7 @@ fn lit_box() -> Scene {
         s.name.clone(),
         s.path.clone(),
         s.camera,
-        s.triangles.clone(),
-        s.triangle_material.clone(),
-        materials,
+        Surfaces { triangles: s.triangles.clone(), triangle_material: s.triangle_material.clone(), materials },
         lights,
         Vec::new(),
     );

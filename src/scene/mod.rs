@@ -260,20 +260,26 @@ impl SurfaceInteraction {
     }
 }
 
+/// A scene's surfaces as the loader validated them (finite, non-degenerate, material ids in
+/// range): triangles, each one's material, the materials.
+pub(crate) struct Surfaces {
+    pub triangles: Vec<[Vec3A; 3]>,
+    pub triangle_material: Vec<u32>,
+    pub materials: Vec<Material>,
+}
+
 impl Scene {
-    /// Builds a scene from triangles already validated (finite, non-degenerate, material ids in
-    /// range). `warnings` carries what the loader found.
-    #[allow(clippy::too_many_arguments)]
+    /// Builds a scene from its surfaces and other lights. `warnings` carries what the loader
+    /// found.
     pub(crate) fn from_parts(
         name: String,
         path: PathBuf,
         camera: Camera,
-        triangles: Vec<[Vec3A; 3]>,
-        triangle_material: Vec<u32>,
-        materials: Vec<Material>,
+        surfaces: Surfaces,
         lights: Lights,
         mut warnings: Vec<String>,
     ) -> Self {
+        let Surfaces { triangles, triangle_material, materials } = surfaces;
         let normals: Vec<Vec3A> = triangles.iter().map(|t| (t[1] - t[0]).cross(t[2] - t[0]).normalize()).collect();
         let area = AreaLights::new(&triangles, &normals, |i| {
             let m = &materials[triangle_material[i] as usize];
@@ -326,9 +332,7 @@ impl Scene {
             name.into(),
             PathBuf::new(),
             camera,
-            triangles,
-            vec![0; n],
-            vec![material],
+            Surfaces { triangles, triangle_material: vec![0; n], materials: vec![material] },
             Lights::default(),
             Vec::new(),
         )

@@ -5,7 +5,7 @@
 use super::description::{LightKind, MapLayout, SceneDescription};
 use super::filter::{FilterShape, PixelFilter};
 use super::import::{Format, ImportOptions};
-use super::{Attributes, Camera, Scene};
+use super::{Attributes, Camera, Scene, Surfaces};
 use crate::geometry::{Vec2, Vec3A};
 use crate::io::read_text;
 use crate::light::Lights;
@@ -438,8 +438,8 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
         .and_then(|p| p.file_name())
         .map_or_else(|| "scene".to_string(), |n| n.to_string_lossy().into_owned());
     let (lights, light_sources) = lights_from(path, &d)?;
-    let mut scene =
-        Scene::from_parts(name, path.to_path_buf(), camera, triangles, triangle_material, materials, lights, warnings);
+    let surfaces = Surfaces { triangles, triangle_material, materials };
+    let mut scene = Scene::from_parts(name, path.to_path_buf(), camera, surfaces, lights, warnings);
     scene.attributes = attributes;
     scene.textures = textures;
     scene.texture_uv = texture_uv;
