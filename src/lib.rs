@@ -31,6 +31,7 @@
 pub mod accel;
 pub mod batch;
 pub mod cli;
+pub mod color;
 pub mod converge;
 pub mod error;
 pub mod film;

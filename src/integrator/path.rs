@@ -111,7 +111,7 @@ fn general_path<A: Accel, const BOUNDED: bool>(
 /// vertex, the BSDF's frame and the local direction to the viewer): the BSDF's sampling for
 /// `path`, the photon grid for `jensen` (ALGORITHM.md §5 defines Jensen's method as exactly
 /// this loop). Where `mis` applies, emission found by `sample_direction` is counted with the
-/// power heuristic against NEE, whose density there [`crate::scene::Scene::emitter_pdf`]
+/// power heuristic against NEE, whose density there [`crate::light::LightSet::triangle_pdf`]
 /// replays (`sample_direction` must then return its true density); elsewhere only NEE counts
 /// light past the first hit, except behind delta lobes.
 ///

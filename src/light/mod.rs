@@ -7,21 +7,21 @@
 //! - [`distant`]: distant (directional) lights;
 //! - [`envmap`]: the environment, constant or an equirectangular map, importance-sampled.
 //!
-//! [`set::LightSet`] holds a scene's lights and chooses between them by power; it dispatches
-//! through an enum of the kinds ([`set::LightId`]), so no ray goes through dynamic dispatch.
+//! [`choice::LightSet`] holds a scene's lights and chooses between them by power; it dispatches
+//! through an enum of the kinds ([`choice::LightId`]), so no ray goes through dynamic dispatch.
 //! Adding a kind of light: its file with an `impl Light`, a variant of `LightId`, and an arm
 //! in each of the set's matches.
 pub mod area;
+pub mod choice;
 pub mod distant;
 pub mod envmap;
 pub mod point;
-pub mod set;
 
 pub use area::{AreaLights, FEW_EMITTERS, IN_FRONT_MARGIN, NEAR_RATIO};
+pub use choice::{LightSet, Lights};
 pub use distant::DistantLight;
 pub use envmap::{EnvSample, Environment};
 pub use point::{Emission, PointLight, PointSample, Spot};
-pub use set::{LightSet, Lights};
 
 #[cfg(doc)]
 use crate::geometry::spherical;

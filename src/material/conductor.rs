@@ -4,6 +4,9 @@ use super::microfacet::Microfacet;
 use super::{BsdfSample, fresnel, reflect};
 use crate::geometry::{Vec2, Vec3A};
 
+/// The keys of a scene file's material that a conductor reads.
+pub const SCENE_KEYS: &[&str] = &["metal", "eta", "k", "specular", "roughness", "distribution", "masking"];
+
 /// `f(wi, wo)` of a rough conductor (both directions above the surface).
 #[inline]
 pub(super) fn eval(mf: Microfacet, eta: Vec3A, k: Vec3A, specular: Vec3A, wi: Vec3A, wo: Vec3A) -> Vec3A {

@@ -5,6 +5,11 @@ use super::reflect;
 use super::{BsdfSample, fresnel};
 use crate::geometry::{Vec2, Vec3A};
 
+/// The keys of a scene file's material that a dielectric reads.
+pub const SCENE_KEYS: &[&str] = &["ior", "exterior_ior", "roughness", "distribution", "masking"];
+/// The keys of a scene file's material that a thin dielectric reads.
+pub const THIN_SCENE_KEYS: &[&str] = &["ior", "exterior_ior"];
+
 /// `wi` and `wo` mirrored so that `wi` is on the +z side, and the relative index seen from
 /// there (`eta` from outside, `1/eta` from inside).
 #[inline]

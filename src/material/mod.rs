@@ -1,22 +1,25 @@
-//! Scattering models beyond the Lambertian wall, in the local shading frame (+z
-//! the shading normal, `wi` toward the viewer, `wo` the scattered direction, both unit): an
-//! enum with static dispatch, each model with `eval` (the BSDF value `f`, no cosine), `pdf`
-//! (solid angle, of [`Bsdf::sample`]'s non-delta directions) and `sample` (a direction and its
-//! weight `f·|cos θo|/pdf`), and a flag for delta lobes (whose `eval` and `pdf` are 0: only
-//! `sample` reaches them).
+//! Scattering models in the local shading frame (+z the shading normal, `wi` toward the
+//! viewer, `wo` the scattered direction, both unit): the [`Bsdf`] enum with static dispatch to
+//! one file per family — `diffuse.rs`, `conductor.rs` (named metals in `metals.rs`),
+//! `dielectric.rs`, `plastic.rs` — each with `eval` (the BSDF value `f`, no cosine), `pdf`
+//! (solid angle, of [`Bsdf::sample`]'s non-delta directions), `sample` (a direction and its
+//! weight `f·|cos θo|/pdf`) and the scene-file keys it reads (`SCENE_KEYS`); a flag for delta
+//! lobes (whose `eval` and `pdf` are 0: only `sample` reaches them). Shared pieces:
+//! `fresnel.rs`, `microfacet.rs`.
 //!
 //! Surfaces are one-sided as in Mitsuba 3: `wi.z ≤ 0` scatters nothing; a two-sided surface
 //! is handled by its caller flipping the frame to the viewer's side.
 //!
 //! A scene's [`crate::scene::Material`] holds one; the integrators build the local frame at
-//! each hit ([`crate::scene::SurfaceInteraction::bsdf_frame`]).
-pub mod cie;
-mod conductor;
-mod dielectric;
+//! each hit ([`crate::scene::SurfaceInteraction::bsdf_frame`]). Adding a family: its file, a
+//! variant of [`Bsdf`] with an arm in each method, and the importers' translation tables.
+pub mod conductor;
+pub mod dielectric;
+pub mod diffuse;
 pub mod fresnel;
 pub mod metals;
 pub mod microfacet;
-mod plastic;
+pub mod plastic;
 
 pub use plastic::{COAT_TABLE, RoughCoat, diffuse_fresnel};
 
@@ -174,7 +177,7 @@ impl Bsdf {
                     None => base,
                 }
             }
-            Bsdf::Diffuse { reflectance } => reflectance * FRAC_1_PI,
+            Bsdf::Diffuse { reflectance } => diffuse::eval(reflectance),
             Bsdf::Conductor { roughness: None, .. } => Vec3A::ZERO,
             Bsdf::Conductor { eta, k, specular, roughness: Some(mf) } => conductor::eval(mf, eta, k, specular, wi, wo),
         }
@@ -199,7 +202,7 @@ impl Bsdf {
                 let coat_pdf = coat.map_or(0.0, |c| p * plastic::coat_reflection(&c, eta, wi, wo).1);
                 coat_pdf + (1.0 - p) * wo.z * FRAC_1_PI
             }
-            Bsdf::Diffuse { .. } => wo.z * FRAC_1_PI,
+            Bsdf::Diffuse { .. } => diffuse::pdf(wo),
             Bsdf::Conductor { roughness: None, .. } => 0.0,
             Bsdf::Conductor { roughness: Some(mf), .. } => conductor::pdf(mf, wi, wo),
         }
@@ -248,10 +251,7 @@ impl Bsdf {
                 let f = plastic::base(diffuse, eta, fdr_int, nonlinear, None, wi, wo);
                 Some(BsdfSample { wo, weight: f * wo.z / pdf, pdf, delta: false })
             }
-            Bsdf::Diffuse { reflectance } => {
-                let wo = crate::geometry::warp::cosine_hemisphere(u);
-                (wo.z > 0.0).then_some(BsdfSample { wo, weight: reflectance, pdf: wo.z * FRAC_1_PI, delta: false })
-            }
+            Bsdf::Diffuse { reflectance } => diffuse::sample(reflectance, u),
             Bsdf::Conductor { eta, k, specular, roughness: None } => {
                 Some(conductor::sample_mirror(eta, k, specular, wi))
             }

@@ -8,6 +8,10 @@ use super::reflect;
 use crate::geometry::Vec3A;
 use std::f32::consts::FRAC_1_PI;
 
+/// The keys of a scene file's material that a plastic reads.
+pub const SCENE_KEYS: &[&str] =
+    &["diffuse", "ior", "exterior_ior", "nonlinear", "roughness", "distribution", "masking"];
+
 /// Entries of a rough plastic's transmittance table, over `cos θ ∈ [0, 1]` (Mitsuba's 64).
 pub const COAT_TABLE: usize = 64;
 

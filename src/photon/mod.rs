@@ -197,7 +197,7 @@ impl PhotonMap {
     }
 }
 
-/// Traces photon path `index` from [`Scene::emit_photon`] (a light by power; on a surface a
+/// Traces photon path `index` from [`crate::light::LightSet::emit_photon`] (a light by power; on a surface a
 /// uniform point and a cosine direction, flux `π·Le/pdf_area`; divided by the path count
 /// later); stored at every
 /// hit that is not pure delta; continued by Russian roulette on the albedo, in the BSDF's

@@ -154,6 +154,14 @@ pub struct EnvironmentDescription {
     pub lookup: Option<EnvLookupDescription>,
 }
 
+impl EnvironmentDescription {
+    /// A constant environment of `radiance`.
+    #[must_use]
+    pub fn constant(radiance: [f32; 3]) -> Self {
+        Self { radiance: Some(radiance), map: None, scale: None, layout: None, matrix: None, lookup: None }
+    }
+}
+
 /// How an environment map is read (see [`crate::light::envmap::Lookup`]).
 #[derive(Debug, Deserialize, Clone, Copy, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
@@ -392,15 +400,22 @@ impl TextureDescription {
     /// A texture of one colour (a checkerboard of two equal colours: importers' fallback).
     #[must_use]
     pub fn constant(c: [f32; 3]) -> Self {
+        Self { scale: None, ..Self::checkerboard(c, c, [1.0; 2]) }
+    }
+
+    /// A checkerboard of `color0` (at the origin) and `color1`, `scale` squares across `u` and
+    /// `v`.
+    #[must_use]
+    pub fn checkerboard(color0: [f32; 3], color1: [f32; 3], scale: [f32; 2]) -> Self {
         Self {
             kind: TextureKind::Checkerboard,
             file: None,
             wrap: None,
             filter: None,
             raw: None,
-            color0: Some(c),
-            color1: Some(c),
-            scale: None,
+            color0: Some(color0),
+            color1: Some(color1),
+            scale: Some(scale),
             v_from_top: None,
             uv_transform: None,
             factor: None,

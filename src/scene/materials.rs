@@ -6,7 +6,7 @@ use super::{Material, TextureSlots};
 use crate::Result;
 use crate::geometry::Vec3A;
 use crate::material::microfacet::{Distribution, Masking, Microfacet};
-use crate::material::{Bsdf, metals};
+use crate::material::{self, Bsdf, metals};
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -86,12 +86,12 @@ pub(super) fn texture_slots(
 pub(super) fn bsdf_from(d: &MaterialDescription) -> std::result::Result<Bsdf, String> {
     use crate::scene::description::MaterialKind as K;
     let kind = format!("{:?}", d.kind).to_lowercase();
-    let allowed: &[&str] = match d.kind {
-        K::Diffuse => &["diffuse"],
-        K::Conductor => &["metal", "eta", "k", "specular", "roughness", "distribution", "masking"],
-        K::Dielectric => &["ior", "exterior_ior", "roughness", "distribution", "masking"],
-        K::ThinDielectric => &["ior", "exterior_ior"],
-        K::Plastic => &["diffuse", "ior", "exterior_ior", "nonlinear", "roughness", "distribution", "masking"],
+    let allowed = match d.kind {
+        K::Diffuse => material::diffuse::SCENE_KEYS,
+        K::Conductor => material::conductor::SCENE_KEYS,
+        K::Dielectric => material::dielectric::SCENE_KEYS,
+        K::ThinDielectric => material::dielectric::THIN_SCENE_KEYS,
+        K::Plastic => material::plastic::SCENE_KEYS,
     };
     let given = [
         ("diffuse", d.diffuse != [0.0; 3] && d.kind != K::Diffuse),

@@ -34,14 +34,7 @@ impl Translator<'_, '_> {
             "constant" => {
                 self.check_params(e, &["radiance"])?;
                 let radiance = self.constant_colour(e, "radiance", [1.0; 3])?;
-                let env = EnvironmentDescription {
-                    radiance: Some(radiance),
-                    map: None,
-                    scale: None,
-                    layout: None,
-                    matrix: None,
-                    lookup: None,
-                };
+                let env = EnvironmentDescription::constant(radiance);
                 self.environment(e, env)?;
             }
             "envmap" => {

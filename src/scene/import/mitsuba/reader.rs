@@ -207,7 +207,7 @@ impl Reader<'_> {
                             .ok_or_else(|| syntax(at, format!("<spectrum>: \"{pair}\" is not λ:value")))?;
                         points.push((number(l)?, number(v)?));
                     }
-                    let rgb = crate::material::cie::spectrum_to_rgb(&points, in_emitter).ok_or_else(|| {
+                    let rgb = crate::color::spectrum_to_rgb(&points, in_emitter).ok_or_else(|| {
                         syntax(at, "<spectrum> needs two or more λ:value pairs with increasing wavelengths")
                     })?;
                     Value::Colour(if in_emitter { rgb.map(|c| c.max(0.0)) } else { rgb.map(|c| c.clamp(0.0, 1.0)) })

@@ -51,20 +51,7 @@ impl Translator<'_, '_> {
                 } else {
                     ([2.0, 2.0], Some(uv_rows(m)))
                 };
-                TextureDescription {
-                    kind: TextureKind::Checkerboard,
-                    file: None,
-                    wrap: None,
-                    filter: None,
-                    raw: None,
-                    color0: Some(c0),
-                    color1: Some(c1),
-                    scale: Some(scale),
-                    v_from_top: None,
-                    uv_transform: map,
-                    factor: None,
-                    invert: None,
-                }
+                TextureDescription { uv_transform: map, ..TextureDescription::checkerboard(c0, c1, scale) }
             }
             other => {
                 self.unsupported(&t.at, format!("<texture type=\"{other}\"> is not supported: grey 0.5 used"))?;

@@ -94,14 +94,7 @@ impl Parser<'_> {
                     });
                 } else {
                     let radiance = constant(self, "L", 1.0)?;
-                    let env = EnvironmentDescription {
-                        radiance: Some(radiance),
-                        map: None,
-                        scale: None,
-                        layout: None,
-                        matrix: None,
-                        lookup: None,
-                    };
+                    let env = EnvironmentDescription::constant(radiance);
                     self.out.environment = Some(env);
                 }
                 params.get("illuminance");

@@ -64,7 +64,7 @@ impl Parser<'_> {
                 // scales it by 1/∫Lȳ, then by "scale"); a reflectance is taken under D65.
                 let points: Vec<(f64, f64)> = v.chunks(2).map(|p| (p[0], p[1])).collect();
                 let emission = matches!(name, "L" | "I");
-                let rgb = crate::material::cie::spectrum_to_rgb(&points, emission)
+                let rgb = crate::color::spectrum_to_rgb(&points, emission)
                     .ok_or_else(|| syntax(at, format!("\"spectrum {name}\": wavelengths must increase")))?;
                 if emission {
                     let y = f64::from(crate::geometry::luminance(glam::Vec3A::from_array(rgb)));
@@ -413,20 +413,7 @@ impl Parser<'_> {
                 let (c1, c2) = (value(self, "tex1", 1.0)?, value(self, "tex2", 0.0)?);
                 let (us, vs) = (params.float("uscale", 1.0, at)?, params.float("vscale", 1.0, at)?);
                 params.get("dimension");
-                TextureDescription {
-                    kind: TextureKind::Checkerboard,
-                    file: None,
-                    wrap: None,
-                    filter: None,
-                    raw: None,
-                    color0: Some(c1),
-                    color1: Some(c2),
-                    scale: Some([us.abs().max(1e-6) as f32, vs.abs().max(1e-6) as f32]),
-                    v_from_top: None,
-                    uv_transform: None,
-                    factor: None,
-                    invert: None,
-                }
+                TextureDescription::checkerboard(c1, c2, [us.abs().max(1e-6) as f32, vs.abs().max(1e-6) as f32])
             }
             "constant" => match self.colour(params, "value", [1.0; 3], at)? {
                 Colour::Constant(c) => TextureDescription::constant(c),
