@@ -5,8 +5,7 @@
 //! sampling hits it, weighted against NEE by multiple importance sampling (power heuristic):
 //! each light path is counted once in expectation.
 use super::{
-    Integrator, MisAt, RenderContext, Scatter, Scratch, ShadingVertex, direct_light, nee_strategy, power_heuristic,
-    sample_bsdf,
+    Integrator, MisAt, RenderContext, Scatter, Scratch, direct_light, nee_strategy, power_heuristic, sample_bsdf,
 };
 use crate::accel::Accel;
 use crate::geometry::{Frame, UVec2, Vec3A};
@@ -160,8 +159,7 @@ pub(crate) fn trace_path<A: Accel, const NEE_ONLY: bool, const BOUNDED: bool>(
         let wi = if NEE_ONLY || si.material.lambertian().is_some() { Vec3A::Z } else { frame.to_local(si.wo) };
         let weigh = if NEE_ONLY { MisAt::NONE } else { mis.at(&si.material) };
         if NEE_ONLY || !si.material.bsdf.is_delta() {
-            radiance +=
-                throughput * direct_light(ctx, ShadingVertex { si: &si, frame: &frame, wi }, weigh, rng, scratch);
+            radiance += throughput * direct_light(ctx, &si, &frame, wi, weigh, rng, scratch);
         }
         if bounce >= rr_depth {
             let q = survival_probability(albedo);

@@ -22,9 +22,7 @@
 //! (`--integrator jensen --learned-guide on`).
 use super::mixture::{BSDF_SHARE, guides_at, sample_mixture};
 use super::path::{Mis, PathTracer};
-use super::{
-    Integrator, RenderContext, Scratch, ShadingVertex, direct_light_against, nee_strategy, power_heuristic, sample_bsdf,
-};
+use super::{Integrator, RenderContext, Scratch, direct_light_against, nee_strategy, power_heuristic, sample_bsdf};
 use crate::Result;
 use crate::accel::Accel;
 use crate::film::{PriorSamples, mean_variance};
@@ -583,14 +581,7 @@ impl<A: Accel> Walker<'_, A> {
             };
             beta * box_pdf + (1.0 - beta) * mixture_pdf(alpha, learned, local.z)
         };
-        let direct = direct_light_against(
-            ctx,
-            ShadingVertex { si, frame: &frame, wi: frame.to_local(si.wo) },
-            weigh,
-            rng,
-            scratch,
-            density,
-        );
+        let direct = direct_light_against(ctx, si, &frame, frame.to_local(si.wo), weigh, rng, scratch, density);
         let mut f = self.zvidpt.continuation(albedo, walk, est);
         if f > 1.0 && (depth >= 16 || branches * (f.ceil() as u32) > MAX_BRANCHES) {
             f = 1.0;
@@ -729,7 +720,7 @@ impl<A: Accel> Walker<'_, A> {
                 let p = bsdf.pdf(wi, local);
                 if guided { BSDF_SHARE * p + (1.0 - BSDF_SHARE) * guide.pdf(cell, guide_frame.to_local(w)) } else { p }
             };
-            direct_light_against(ctx, ShadingVertex { si, frame: &frame, wi }, weigh, rng, scratch, density)
+            direct_light_against(ctx, si, &frame, wi, weigh, rng, scratch, density)
         };
         let q = if depth >= 3 { survival_probability(albedo) } else { 1.0 };
         let q = if depth >= 32 { q.min(0.8) } else { q };

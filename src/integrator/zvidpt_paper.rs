@@ -9,7 +9,7 @@
 //!
 //! The weights are `W0 = 1/(n·m·Pj)` and `W(k+1) = Wk · f·cosθ / (pdf(ωi)·(1 − qk))`.
 use super::photon_guided::{GuideSettings, PhotonGuide, radiance_estimate, termination_probability};
-use super::{Integrator, MisAt, RenderContext, Scratch, ShadingVertex, direct_light};
+use super::{Integrator, MisAt, RenderContext, Scratch, direct_light};
 use crate::Result;
 use crate::accel::Accel;
 use crate::geometry::{UVec2, Vec2, Vec3A, luminance};
@@ -187,11 +187,7 @@ impl Zvidpt {
                 termination_probability(albedo, &g.density, self.q_min, self.q_max, self.q_kappa)
             };
             let direct = |rng: &mut SampleStream, scratch: &mut Scratch| {
-                if delta {
-                    Vec3A::ZERO
-                } else {
-                    direct_light(ctx, ShadingVertex { si: &si, frame: &frame, wi }, MisAt::NONE, rng, scratch)
-                }
+                if delta { Vec3A::ZERO } else { direct_light(ctx, &si, &frame, wi, MisAt::NONE, rng, scratch) }
             };
             match self.estimator {
                 Estimator::Terminal => {

@@ -93,6 +93,7 @@ impl LightSet {
     /// A point on a light for next event estimation at `at`: a light by power (`u_pick`,
     /// reused within it), then a point on it ([`Light::sample_from`]). `None` when the chosen
     /// light sends nothing to `at` or nothing emits.
+    #[inline]
     #[must_use]
     pub fn sample(&self, at: &Receiver, u_pick: f32, u_point: Vec2) -> Option<LightSample> {
         let choice = self.choice.as_ref()?;
@@ -110,6 +111,7 @@ impl LightSet {
     /// `p` of emitter triangle `prim`: what multiple importance sampling weighs a direction
     /// that hit `p` by. 0 where the sampler cannot reach `p` (and for a triangle that does not
     /// emit).
+    #[inline]
     #[must_use]
     pub fn triangle_pdf(&self, at: &Receiver, prim: u32, p: Vec3A) -> f32 {
         let pdf = self.pick(0) * self.area.pdf_from(at, prim, p);

@@ -118,6 +118,32 @@ impl Bsdf {
         Bsdf::Plastic { diffuse: reflectance, eta, fdr_int, nonlinear, specular_share: 1.0 / (1.0 + mean), coat }
     }
 
+    /// The BSDF at a hit where textures give the `reflectance` (a diffuse surface's, a
+    /// plastic's base, a conductor's `specular` factor) and the microfacets' `alpha` (of a
+    /// rough conductor or a rough dielectric that is not thin): the step from a material and
+    /// its textures to the BSDF a hit scatters with (pbrt's `GetBxDF`).
+    #[inline]
+    pub fn set_textured(&mut self, reflectance: Option<Vec3A>, alpha: Option<f32>) {
+        if let Some(r) = reflectance {
+            match self {
+                Bsdf::Diffuse { reflectance } => *reflectance = r,
+                Bsdf::Plastic { diffuse, .. } => *diffuse = r,
+                Bsdf::Conductor { specular, .. } => *specular = r,
+                Bsdf::Dielectric { .. } => {}
+            }
+        }
+        if let Some(alpha) = alpha {
+            match self {
+                // (The material's own microfacets, made rough by its loader, take the α.)
+                Bsdf::Conductor { roughness: Some(r), .. }
+                | Bsdf::Dielectric { roughness: Some(r), thin: false, .. } => {
+                    r.alpha = alpha;
+                }
+                _ => {}
+            }
+        }
+    }
+
     /// A stand-in for the share of light scattered, per channel, for decisions that only
     /// steer sampling (Russian roulette, the photon guide's radiance estimates): the
     /// reflectance of a diffuse surface or plastic base, a metal's reflectance at normal

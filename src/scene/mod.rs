@@ -478,27 +478,12 @@ impl Scene {
         let t = self.attributes.uvs.get(prim).unwrap_or(&Attributes::BARYCENTRIC_UV);
         let uv = t[0] * b[0] + t[1] * b[1] + t[2] * b[2];
         let slots = material.textures;
-        if let Some(i) = slots.reflectance {
-            let r = self.texture(i, uv).clamp(Vec3A::ZERO, Vec3A::ONE);
-            match &mut material.bsdf {
-                Bsdf::Diffuse { reflectance } => *reflectance = r,
-                Bsdf::Plastic { diffuse, .. } => *diffuse = r,
-                Bsdf::Conductor { specular, .. } => *specular = r,
-                Bsdf::Dielectric { .. } => {}
-            }
-        }
-        if let Some(i) = slots.roughness {
+        let reflectance = slots.reflectance.map(|i| self.texture(i, uv).clamp(Vec3A::ZERO, Vec3A::ONE));
+        let alpha = slots.roughness.map(|i| {
             let alpha = luminance(self.texture(i, uv)).clamp(Microfacet::MIN_ALPHA, 1.0);
-            let alpha = if alpha.is_nan() { 1.0 } else { alpha };
-            match &mut material.bsdf {
-                // (The material's own microfacets, made rough by its loader, take the α.)
-                Bsdf::Conductor { roughness: Some(r), .. }
-                | Bsdf::Dielectric { roughness: Some(r), thin: false, .. } => {
-                    r.alpha = alpha;
-                }
-                _ => {}
-            }
-        }
+            if alpha.is_nan() { 1.0 } else { alpha }
+        });
+        material.bsdf.set_textured(reflectance, alpha);
     }
 }
 
