@@ -49,6 +49,8 @@ def read_exr(path):
     ch = f.parts[0].channels
     if "RGB" in ch:
         rgb = np.asarray(ch["RGB"].pixels, dtype=np.float64)
+    elif "RGBA" in ch:
+        rgb = np.asarray(ch["RGBA"].pixels, dtype=np.float64)[:, :, :3]
     else:
         rgb = np.dstack([np.asarray(ch[c].pixels, dtype=np.float64) for c in ("R", "G", "B")])
     var = None

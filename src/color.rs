@@ -1,7 +1,7 @@
-//! Colour science. The CIE 1931 2° colour-matching functions and the D65 illuminant, at 1 nm from 360 to 830 nm
-//! (CIE standard data, as Mitsuba 3 tabulates them in single precision; D65 with Mitsuba's scale,
-//! 1.0101 at 560 nm), and the conversion of a sampled spectrum to linear sRGB that Mitsuba 3
-//! applies to `<spectrum>` values in RGB mode.
+//! Colour science: the CIE 1931 2° colour-matching functions and the D65 illuminant, at 1 nm
+//! from 360 to 830 nm (CIE standard data, as Mitsuba 3 tabulates them in single precision; D65
+//! with Mitsuba's scale, 1.0101 at 560 nm), and the conversion of a sampled spectrum to linear
+//! sRGB that Mitsuba 3 applies to `<spectrum>` values in RGB mode.
 
 /// `(x̄, ȳ, z̄, D65)` at `360 + i` nm.
 #[rustfmt::skip]

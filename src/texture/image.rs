@@ -1,4 +1,6 @@
-//! Reading a bitmap from an image file.
+//! Reading a bitmap from an image file: PNG (8 or 16 bits, streamed), TGA and JPEG (the `image`
+//! crate), sRGB-decoded unless raw; OpenEXR, PFM and Radiance HDR, linear. Sizes are bounded
+//! from the header before any allocation.
 use super::{Bitmap, Filter, Texels, Wrap, srgb_to_linear};
 use crate::geometry::Vec3A;
 use std::path::Path;

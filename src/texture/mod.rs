@@ -1,6 +1,6 @@
 //! Textures: values that vary over a surface with its texture coordinates `(u, v)`, to drive
-//! reflectance or roughness. A bitmap (PNG decoded from sRGB, EXR linear), a checkerboard, or
-//! a constant.
+//! reflectance or roughness. A bitmap (`image.rs`: PNG, TGA and JPEG decoded from sRGB unless
+//! raw; EXR, PFM and Radiance HDR linear), a checkerboard, or a constant.
 //!
 //! Coordinates follow OBJ and pbrt: `v = 0` is the image's *bottom* row. A bitmap's texel
 //! `(i, j)` (column, row from the top) is centred at `((i + ½)/W, 1 − (j + ½)/H)`; bilinear

@@ -1,0 +1,347 @@
+"""zvidpt against Blender's Cycles (path tracing, and path guiding with Open PGL) at equal time.
+
+    pip install bpy numpy OpenEXR        # bpy: Blender 5.0 for CPython 3.11
+    python3 peers/race_cycles.py SCENE_DIR OUT [--time 20] [--seeds 1,2] [--threads 2] [--ref-spp 8192]
+        [--integrators "path;zvidpt"] [--resolution WxH] [--zvidpt BIN]
+
+SCENE_DIR is a zvidpt TOML scene of the subset Cycles can be given exactly (`scenes/cornell-paper`):
+a pinhole camera (`eye`, `look_at`, `up`, vertical `fov_y`), the one-pixel box filter, OBJ meshes
+with two-sided Lambertian materials (MTL `Kd`, or a `[materials]` entry's `diffuse`) and
+one-sided emitters (`emission`). Anything else is refused rather than approximated. The
+translation into Cycles:
+
+- each OBJ imported without axis conversion (zvidpt's coordinates as they are), each material a
+  Diffuse BSDF of its reflectance; an emitter's front (its geometric normal, as wound) an
+  Emission of its radiance, its back black (`Backfacing` mask), and Cycles told to sample only
+  its front (`emission_sampling = FRONT`): a Cycles mesh light otherwise emits from both sides;
+- the camera at `eye` looking along `look_at - eye`, `up` up, vertical field of view `fov_y`;
+- a box pixel filter one pixel wide, no clamping, no glossy filter, no denoising, no adaptive
+  sampling, 1024 bounces of every kind (Cycles' Russian roulette ends paths), a black world,
+  the `Standard` view transform (the EXR holds linear Rec.709 radiance, as zvidpt's);
+- Cycles' own sampling pattern (`sampling_pattern`, printed) and its `seed`;
+- equal time through Cycles' `time_limit` (rendering after scene synchronisation; the wall
+  seconds of the whole render call are what is reported), `--threads` CPU threads;
+- guiding: `use_guiding`, `use_surface_guiding` with Cycles' default training samples.
+
+Every image is compared with the mean of two `zvidpt reference` halves, as in `race.py`: MSE less
+the reference's own noise, and MSE x seconds. Before any comparison each Cycles configuration's
+translation is checked: the mean of its images over the seeds against the reference's mean, per
+channel (z from the seeds' spread and the reference's); a |z| above 4 marks a mismatch and its
+figures are not race results.
+
+Writes OUT/cycles.csv and OUT/cycles.md.
+"""
+import argparse
+import csv
+import math
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from race import DEFAULT_BIN, read_exr, run, zvidpt_seconds  # noqa: E402
+
+MESH_KEYS = {"obj", "material"}
+MATERIAL_KEYS = {"diffuse", "emission"}
+CAMERA_KEYS = {"eye", "look_at", "up", "fov_y", "width", "height"}
+
+
+def refuse(message):
+    sys.exit(f"peers/race_cycles.py: {message}: not in the subset Cycles is given exactly")
+
+
+def read_scene(folder):
+    """The TOML scene's camera, meshes and materials, checked against the subset."""
+    d = tomllib.loads((folder / "scene.toml").read_text())
+    for key in d:
+        if key not in {"camera", "materials", "mesh"}:
+            refuse(f"[{key}]")
+    cam = d["camera"]
+    if set(cam) - CAMERA_KEYS:
+        refuse(f"camera keys {sorted(set(cam) - CAMERA_KEYS)}")
+    materials = d.get("materials", {})
+    for name, m in materials.items():
+        if set(m) - MATERIAL_KEYS:
+            refuse(f"material {name} keys {sorted(set(m) - MATERIAL_KEYS)}")
+    meshes = d.get("mesh", [])
+    for m in meshes:
+        if set(m) - MESH_KEYS:
+            refuse(f"mesh keys {sorted(set(m) - MESH_KEYS)}")
+    return cam, materials, meshes
+
+
+def mtl_colours(obj_path):
+    """`Kd` of each material of the OBJ's MTL files."""
+    colours = {}
+    for line in obj_path.read_text().splitlines():
+        if line.startswith("mtllib "):
+            name = None
+            for l in (obj_path.parent / line.split(None, 1)[1].strip()).read_text().splitlines():
+                t = l.split()
+                if t and t[0] == "newmtl":
+                    name = t[1]
+                elif t and t[0] == "Kd" and name:
+                    colours[name] = [float(x) for x in t[1:4]]
+                elif t and t[0] not in ("newmtl", "Kd", "#") and not t[0].startswith("#"):
+                    refuse(f"MTL statement {t[0]}")
+    return colours
+
+
+def build_cycles_scene(folder, width, height, threads):
+    import bpy
+    from mathutils import Matrix, Vector
+
+    cam, materials, meshes = read_scene(folder)
+    scene = bpy.context.scene
+    # The start-up scene's objects (a cube, a lamp, a camera) go.
+    for o in list(bpy.data.objects):
+        bpy.data.objects.remove(o, do_unlink=True)
+    scene.render.engine = "CYCLES"
+
+    def diffuse_material(name, rgb):
+        m = bpy.data.materials.new(name)
+        m.use_nodes = True
+        nodes = m.node_tree.nodes
+        nodes.clear()
+        out = nodes.new("ShaderNodeOutputMaterial")
+        bsdf = nodes.new("ShaderNodeBsdfDiffuse")
+        bsdf.inputs["Color"].default_value = (*rgb, 1.0)
+        bsdf.inputs["Roughness"].default_value = 0.0
+        m.node_tree.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+        return m
+
+    def emitter_material(name, radiance):
+        m = bpy.data.materials.new(name)
+        m.use_nodes = True
+        nodes, links = m.node_tree.nodes, m.node_tree.links
+        nodes.clear()
+        out = nodes.new("ShaderNodeOutputMaterial")
+        emission = nodes.new("ShaderNodeEmission")
+        peak = max(radiance)
+        emission.inputs["Color"].default_value = (*[c / peak for c in radiance], 1.0)
+        emission.inputs["Strength"].default_value = peak
+        black = nodes.new("ShaderNodeBsdfDiffuse")
+        black.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+        geometry = nodes.new("ShaderNodeNewGeometry")
+        mix = nodes.new("ShaderNodeMixShader")
+        links.new(geometry.outputs["Backfacing"], mix.inputs["Fac"])
+        links.new(emission.outputs["Emission"], mix.inputs[1])
+        links.new(black.outputs["BSDF"], mix.inputs[2])
+        links.new(mix.outputs["Shader"], out.inputs["Surface"])
+        m.cycles.emission_sampling = "FRONT"
+        return m
+
+    made = {}
+
+    def material_named(base, from_toml, kd):
+        if base in made:
+            return made[base]
+        if from_toml:
+            m = materials.get(base)
+            if m is None:
+                refuse(f"material {base} not defined")
+            emission = m.get("emission", [0.0, 0.0, 0.0])
+            if max(emission) > 0 and max(m.get("diffuse", [0.0] * 3)) > 0:
+                refuse(f"material {base}: an emitter that also reflects")
+            made[base] = (emitter_material(base, emission) if max(emission) > 0
+                          else diffuse_material(base, m.get("diffuse", [0.5] * 3)))
+        else:
+            if base not in kd:
+                refuse(f"material {base} has no Kd")
+            made[base] = diffuse_material(base, kd[base])
+        return made[base]
+
+    for mesh in meshes:
+        obj_path = folder / mesh["obj"]
+        before = set(bpy.data.objects)
+        bpy.ops.wm.obj_import(filepath=str(obj_path), forward_axis="Y", up_axis="Z")
+        imported = [o for o in bpy.data.objects if o not in before]
+        kd = mtl_colours(obj_path)
+        for o in imported:
+            if "material" in mesh:
+                o.data.materials.clear()
+                o.data.materials.append(material_named(mesh["material"], True, kd))
+                continue
+            if not o.material_slots:
+                refuse(f"{obj_path.name}: a mesh without a material")
+            for slot in o.material_slots:
+                if slot.material is None:
+                    refuse(f"{obj_path.name}: a face without a material")
+                slot.material = material_named(slot.material.name.split(".")[0], False, kd)
+
+    eye, target, up = (Vector(cam[k]) for k in ("eye", "look_at", "up"))
+    forward = (target - eye).normalized()
+    right = forward.cross(up).normalized()
+    true_up = right.cross(forward)
+    rotation = Matrix((right, true_up, -forward)).transposed()
+    cam_data = bpy.data.cameras.new("camera")
+    cam_data.sensor_fit = "VERTICAL"
+    cam_data.angle_y = math.radians(cam["fov_y"])
+    cam_obj = bpy.data.objects.new("camera", cam_data)
+    cam_obj.matrix_world = Matrix.Translation(eye) @ rotation.to_4x4()
+    scene.collection.objects.link(cam_obj)
+    scene.camera = cam_obj
+
+    world = bpy.data.worlds.new("black")
+    world.use_nodes = True
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
+    scene.world = world
+
+    r = scene.render
+    r.engine = "CYCLES"
+    r.resolution_x, r.resolution_y = width or cam["width"], height or cam["height"]
+    r.resolution_percentage = 100
+    r.threads_mode = "FIXED"
+    r.threads = threads
+    r.film_transparent = False
+    r.image_settings.file_format = "OPEN_EXR"
+    r.image_settings.color_depth = "32"
+    r.image_settings.exr_codec = "ZIP"
+    scene.view_settings.view_transform = "Standard"
+    scene.view_settings.look = "None"
+    scene.view_settings.exposure = 0.0
+    scene.view_settings.gamma = 1.0
+    c = scene.cycles
+    c.device = "CPU"
+    c.use_adaptive_sampling = False
+    c.use_denoising = False
+    c.samples = 1 << 24
+    c.pixel_filter_type = "BOX"
+    c.filter_width = 1.0
+    c.sample_clamp_direct = 0.0
+    c.sample_clamp_indirect = 0.0
+    c.blur_glossy = 0.0
+    for bounces in ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces",
+                    "transparent_max_bounces"):
+        setattr(c, bounces, 1024)
+    c.volume_bounces = 0
+    return scene
+
+
+def cycles_render(scene, path, seconds, seed, guiding):
+    import bpy
+
+    c = scene.cycles
+    c.time_limit = seconds
+    c.seed = seed
+    c.use_guiding = guiding
+    c.use_surface_guiding = guiding
+    c.use_volume_guiding = False
+    scene.render.filepath = str(path)
+    start = time.perf_counter()
+    bpy.ops.render.render(write_still=True)
+    return time.perf_counter() - start
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("scene")
+    p.add_argument("out")
+    p.add_argument("--time", type=float, default=20.0)
+    p.add_argument("--seeds", default="1,2")
+    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--ref-spp", type=int, default=8192)
+    p.add_argument("--integrators", default="path;zvidpt")
+    p.add_argument("--resolution", default=None, help="WxH (default: the scene's)")
+    p.add_argument("--zvidpt", default=str(DEFAULT_BIN))
+    a = p.parse_args()
+    folder = Path(a.scene)
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    seeds = [int(s) for s in a.seeds.split(",")]
+    threads = ["--threads", str(a.threads)]
+    width = height = None
+    res = []
+    if a.resolution:
+        width, height = (int(x) for x in a.resolution.lower().split("x"))
+        res = ["--resolution", a.resolution]
+
+    halves = []
+    for k in (0, 1):
+        ref_path = out / f"ref-{k}.exr"
+        run([a.zvidpt, "reference", folder, "--spp", max(1, a.ref_spp // 2), "--seed", 1_000_003 + k, "-o",
+             ref_path, "-q", *threads, *res])
+        halves.append(read_exr(ref_path)[0])
+    ref = (halves[0] + halves[1]) / 2
+    ref_pixel_var = (halves[0] - halves[1]) ** 2 / 4
+    ref_noise = float(ref_pixel_var.mean())
+    pixels = ref.shape[0] * ref.shape[1]
+    rows = []
+
+    for flags in [f.split() for f in a.integrators.split(";") if f.strip()]:
+        name = " ".join(flags)
+        for seed in seeds:
+            img = out / f"zvidpt-{'-'.join(flags).lstrip('-')}-{seed}.exr"
+            o = run([a.zvidpt, "render", folder, "--integrator", *flags, "--time", a.time, "--seed", seed,
+                     "-o", img, "--no-png", *threads, *res])
+            rgb, _ = read_exr(img)
+            secs = zvidpt_seconds(o)
+            mse = float(((rgb - ref) ** 2).mean()) - ref_noise
+            rows.append(("zvidpt", name, seed, secs, mse))
+            print(f"zvidpt {name} seed {seed}: {secs:.2f} s, MSE {mse:.4g}", flush=True)
+
+    scene = build_cycles_scene(folder, width, height, a.threads)
+    print(f"Cycles: sampling pattern {scene.cycles.sampling_pattern}", flush=True)
+    cycles_render(scene, out / "warm-up.exr", 1.0, 0, False)  # the first render pays for set-up
+    checks = {}
+    for name, guiding in (("path", False), ("path guiding (Open PGL)", True)):
+        images = []
+        for seed in seeds:
+            img = out / f"cycles-{'guiding' if guiding else 'path'}-{seed}.exr"
+            secs = cycles_render(scene, img, a.time, seed, guiding)
+            rgb, _ = read_exr(img)
+            if rgb.shape != ref.shape:
+                sys.exit(f"Cycles wrote {rgb.shape}, the reference is {ref.shape}")
+            images.append(rgb)
+            mse = float(((rgb - ref) ** 2).mean()) - ref_noise
+            rows.append(("cycles", name, seed, secs, mse))
+            print(f"cycles {name} seed {seed}: {secs:.2f} s, MSE {mse:.4g}", flush=True)
+        mean = np.mean(images, axis=0)
+        spread = (((images[0] - images[1]) ** 2 / 2).sum(axis=(0, 1)) / pixels**2 / len(images)
+                  if len(images) >= 2 else np.zeros(3))
+        diff = mean.mean(axis=(0, 1)) - ref.mean(axis=(0, 1))
+        z = diff / np.sqrt(np.maximum(spread + ref_pixel_var.sum(axis=(0, 1)) / pixels**2, 1e-30))
+        ratio = mean.mean(axis=(0, 1)) / np.maximum(ref.mean(axis=(0, 1)), 1e-30)
+        matched = bool(np.all(np.abs(z) < 4.0))
+        print(f"Cycles {name} mean / reference mean: {ratio[0]:.4f}, {ratio[1]:.4f}, {ratio[2]:.4f} "
+              f"(z {z[0]:.2f}, {z[1]:.2f}, {z[2]:.2f}): {'matches' if matched else 'MISMATCH'}", flush=True)
+        checks[name] = (matched, ratio, z)
+
+    with open(out / "cycles.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["renderer", "integrator", "seed", "seconds", "mse", "mse_x_seconds"])
+        for r in rows:
+            w.writerow([*r, r[3] * r[4]])
+    lines = [
+        f"Equal time {a.time:g} s, {a.threads} threads, seeds {a.seeds}; MSE against `zvidpt reference` "
+        f"(path, {a.ref_spp} spp in two independent halves) less the reference's own noise ({ref_noise:.3g}). "
+        f"Cycles {scene.cycles.sampling_pattern} sampling pattern. Translation checks (image mean / reference "
+        "mean per channel, z): "
+        + "; ".join(f"{n}: {r[0]:.4f}, {r[1]:.4f}, {r[2]:.4f} (|z| <= {np.abs(z).max():.2f}, "
+                    f"{'matches' if m else 'MISMATCH'})" for n, (m, r, z) in checks.items()) + ".",
+        "",
+        "| renderer | integrator | seconds | MSE | MSE x seconds | spread of MSE x seconds over seeds |",
+        "|---|---|---|---|---|---|",
+    ]
+    groups = {}
+    for r in rows:
+        groups.setdefault((r[0], r[1]), []).append(r)
+    for (renderer, name), rs in groups.items():
+        secs = sum(r[3] for r in rs) / len(rs)
+        mse = sum(r[4] for r in rs) / len(rs)
+        ms = [r[3] * r[4] for r in rs]
+        flag = "" if renderer == "zvidpt" or checks[name][0] else " (translation mismatch)"
+        lines.append(f"| {renderer} | {name}{flag} | {secs:.2f} | {mse:.4g} | {sum(ms) / len(ms):.4g} | "
+                     f"{min(ms):.4g} - {max(ms):.4g} |")
+    (out / "cycles.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    if not all(math.isfinite(r[4]) for r in rows):
+        sys.exit("a render produced a non-finite MSE")
+
+
+if __name__ == "__main__":
+    main()
