@@ -2,9 +2,9 @@
 """Regenerates the results tables (run through scripts/results.sh, which builds the binary).
 
     python3 scripts/results.py --zvidpt BIN (--quick | --full) [--bitterli COLLECTION]
-        [--out DIR] [--write] [--studies cornell-paper,race,suite]
+        [--out DIR] [--write] [--studies cornell-paper,race,suite,cycles]
 
-Three studies, each the source of one row of the README's headline table:
+Four studies, each the source of one row of the README's headline table:
 
 1. cornell-paper (512x384): seconds each integrator needs to reach the MSE of a 256-spp path
    image, learning included. A `zvidpt reference` (path), the target (`zvidpt converge
@@ -16,6 +16,8 @@ Three studies, each the source of one row of the README's headline table:
    `mitsuba`).
 3. Bitterli's seven complete scenes at equal time (scripts/suite.py; skipped without
    --bitterli or $BITTERLI, the collection's root folder).
+4. cornell-paper against Blender's Cycles, path tracing and path guiding, at equal time
+   (peers/race_cycles.py; skipped without pip's `bpy`).
 
 Writes DIR/results.md (default `results`): every table, each with the machine, thread count,
 commit and date it was measured on, and the headline table. --full (and --quick with --write)
@@ -39,9 +41,11 @@ ROOT = Path(__file__).resolve().parent.parent
 COMPLETE = ["coffee", "cornell-box", "hair-curl", "veach-bidir", "veach-mis", "volumetric-caustic", "water-caustic"]
 MODES = {
     "quick": dict(ttm_ref=512, runs=2, race_time=10, race_seeds="1,2", race_ref=512, suite_time=8, suite_ref=512,
-                  suite_seeds="1,2", suite_integrators="path;zvidpt"),
+                  suite_seeds="1,2", suite_integrators="path;zvidpt", cycles_time=5, cycles_ref=256,
+                  cycles_integrators="path;zvidpt"),
     "full": dict(ttm_ref=8192, runs=2, race_time=20, race_seeds="1,2", race_ref=4096, suite_time=8, suite_ref=16384,
-                 suite_seeds="1,2,3,4", suite_integrators="path;zvidpt;jensen --learned-guide on"),
+                 suite_seeds="1,2,3,4", suite_integrators="path;zvidpt;jensen --learned-guide on", cycles_time=20,
+                 cycles_ref=8192, cycles_integrators="path;zvidpt;jensen --learned-guide on"),
 }
 
 
@@ -142,6 +146,28 @@ def race(a, s, out, log):
     return md, head
 
 
+def cycles(a, s, out, log):
+    """zvidpt against Cycles on cornell-paper; None without bpy."""
+    if subprocess.run([sys.executable, "-c", "import bpy, numpy, OpenEXR"], capture_output=True).returncode != 0:
+        print("(no bpy/numpy/OpenEXR for this Python: the race against Cycles is skipped)", file=sys.stderr)
+        return None
+    t0 = time.time()
+    d = out / "cycles"
+    run([sys.executable, "-W", "ignore", "peers/race_cycles.py", "scenes/cornell-paper", d, "--time", s["cycles_time"],
+         "--seeds", "1,2", "--ref-spp", s["cycles_ref"], "--integrators", s["cycles_integrators"], "--zvidpt",
+         a.zvidpt], log)
+    rows = read_csv(d / "cycles.csv")
+    by = {}
+    for r in rows:
+        by.setdefault((r["renderer"], r["integrator"]), []).append(float(r["mse_x_seconds"]))
+    mean = {k: sum(v) / len(v) for k, v in by.items()}
+    md = stamp(a.m, a.mode, time.time() - t0) + "\n\n" + (d / "cycles.md").read_text().strip()
+    peers = ", ".join(f"Cycles {name}: {v:.4f}" for (renderer, name), v in mean.items() if renderer == "cycles")
+    head = (f"MSE × seconds at {s['cycles_time']} s", f"{mean[('zvidpt', 'path')]:.4f}",
+            f"**{mean[('zvidpt', 'zvidpt')]:.4f}**", peers)
+    return md, head
+
+
 def suite(a, s, out, log):
     """Bitterli's complete scenes at equal time; None without the collection."""
     collection = a.bitterli or os.environ.get("BITTERLI")
@@ -216,22 +242,23 @@ def main():
     p.add_argument("--bitterli", help="Bitterli's collection (its root folder)")
     p.add_argument("--out", default="results")
     p.add_argument("--write", action="store_true", help="with --quick: rewrite the docs too")
-    p.add_argument("--studies", default="cornell-paper,race,suite",
-                   help="the studies to run, comma-separated (default all three); the README's headline "
-                        "table is rewritten only when all three ran")
+    p.add_argument("--studies", default="cornell-paper,race,suite,cycles",
+                   help="the studies to run, comma-separated (default all four); --full rewrites the README's "
+                        "headline rows of the studies that ran")
     a = p.parse_args()
     a.zvidpt = str(Path(a.zvidpt).resolve())
     studies = [x.strip() for x in a.studies.split(",") if x.strip()]
-    unknown = [x for x in studies if x not in ("cornell-paper", "race", "suite")]
+    known = ("cornell-paper", "race", "suite", "cycles")
+    unknown = [x for x in studies if x not in known]
     if unknown or not studies:
-        p.error(f"--studies: unknown study {', '.join(unknown) or '(none given)'} (cornell-paper, race, suite)")
+        p.error(f"--studies: unknown study {', '.join(unknown) or '(none given)'} ({', '.join(known)})")
     s = MODES[a.mode]
     out = Path(a.out).resolve()
     out.mkdir(parents=True, exist_ok=True)
     log = out / "results.log"
     a.m = machine()
     t0 = time.time()
-    sections = {"cornell-paper": None, "race": None, "suite": None}
+    sections = {"cornell-paper": None, "race": None, "suite": None, "cycles": None}
     head = []
     if "cornell-paper" in studies:
         md, head_paper = cornell_paper(a, s, out, log)
@@ -246,6 +273,10 @@ def main():
     if r:
         sections["suite"], plot = r[0], r[2]
         head.append((f"Bitterli's {len(COMPLETE)} complete scenes, film / 8", *r[1]))
+    r = cycles(a, s, out, log) if "cycles" in studies else None
+    if r:
+        sections["cycles"] = r[0]
+        head.append(("`cornell-paper` against Cycles", *r[1]))
     headline = "\n".join(["| scene | measure | `path` | `zvidpt` | peers |", "|---|---|---|---|---|"]
                          + ["| " + " | ".join(row) + " |" for row in head])
     report = [f"# Results ({a.mode})", "", stamp(a.m, a.mode, time.time() - t0), "", "## Headline", "", headline]

@@ -25,7 +25,6 @@ pub use plastic::{COAT_TABLE, RoughCoat, diffuse_fresnel};
 
 use crate::geometry::{Vec2, Vec3A};
 use microfacet::Microfacet;
-use std::f32::consts::FRAC_1_PI;
 
 /// A sampled direction.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -197,11 +196,7 @@ impl Bsdf {
         match *self {
             Bsdf::Dielectric { .. } => Vec3A::ZERO,
             Bsdf::Plastic { diffuse, eta, fdr_int, nonlinear, coat, .. } => {
-                let base = plastic::base(diffuse, eta, fdr_int, nonlinear, coat.as_ref(), wi, wo);
-                match &coat {
-                    Some(c) => base + Vec3A::splat(plastic::coat_reflection(c, eta, wi, wo).0),
-                    None => base,
-                }
+                plastic::eval(diffuse, eta, fdr_int, nonlinear, coat.as_ref(), wi, wo)
             }
             Bsdf::Diffuse { reflectance } => diffuse::eval(reflectance),
             Bsdf::Conductor { roughness: None, .. } => Vec3A::ZERO,
@@ -223,11 +218,7 @@ impl Bsdf {
         }
         match *self {
             Bsdf::Dielectric { .. } => 0.0,
-            Bsdf::Plastic { eta, specular_share, coat, .. } => {
-                let p = plastic::mirror_probability(eta, specular_share, coat.as_ref(), wi.z);
-                let coat_pdf = coat.map_or(0.0, |c| p * plastic::coat_reflection(&c, eta, wi, wo).1);
-                coat_pdf + (1.0 - p) * wo.z * FRAC_1_PI
-            }
+            Bsdf::Plastic { eta, specular_share, coat, .. } => plastic::pdf(eta, specular_share, coat.as_ref(), wi, wo),
             Bsdf::Diffuse { .. } => diffuse::pdf(wo),
             Bsdf::Conductor { roughness: None, .. } => 0.0,
             Bsdf::Conductor { roughness: Some(mf), .. } => conductor::pdf(mf, wi, wo),
@@ -246,37 +237,7 @@ impl Bsdf {
         }
         match *self {
             Bsdf::Dielectric { .. } => None,
-            Bsdf::Plastic { coat: Some(_), .. } => {
-                let Bsdf::Plastic { eta, specular_share, coat: Some(c), .. } = *self else { return None };
-                let p = plastic::mirror_probability(eta, specular_share, Some(&c), wi.z);
-                let wo = if u_lobe < p {
-                    reflect(wi, c.mf.sample_visible(wi, u))
-                } else {
-                    crate::geometry::warp::cosine_hemisphere(u)
-                };
-                if wo.z <= 0.0 {
-                    return None;
-                }
-                // Both lobes can reach any direction: the weight of the whole mixture.
-                let pdf = self.pdf(wi, wo);
-                let weight = self.eval(wi, wo) * (wo.z / pdf);
-                (pdf > 0.0 && weight.is_finite()).then_some(BsdfSample { wo, weight, pdf, delta: false })
-            }
-            Bsdf::Plastic { diffuse, eta, fdr_int, nonlinear, specular_share, coat: None } => {
-                let p = plastic::mirror_probability(eta, specular_share, None, wi.z);
-                if u_lobe < p {
-                    let f = fresnel::dielectric(wi.z, eta).0;
-                    let wo = Vec3A::new(-wi.x, -wi.y, wi.z);
-                    return Some(BsdfSample { wo, weight: Vec3A::splat(f / p), pdf: 1.0, delta: true });
-                }
-                let wo = crate::geometry::warp::cosine_hemisphere(u);
-                let pdf = (1.0 - p) * wo.z * FRAC_1_PI;
-                if pdf <= 0.0 {
-                    return None;
-                }
-                let f = plastic::base(diffuse, eta, fdr_int, nonlinear, None, wi, wo);
-                Some(BsdfSample { wo, weight: f * wo.z / pdf, pdf, delta: false })
-            }
+            Bsdf::Plastic { .. } => plastic::sample(self, wi, u_lobe, u),
             Bsdf::Diffuse { reflectance } => diffuse::sample(reflectance, u),
             Bsdf::Conductor { eta, k, specular, roughness: None } => {
                 Some(conductor::sample_mirror(eta, k, specular, wi))

@@ -1,11 +1,12 @@
 //! Plastic: a diffuse base under a dielectric coat, smooth (Mitsuba's `plastic`) or rough
 //! (`roughplastic`, the coat's transmittance tabulated): the coat's reflection, the base's
-//! light through the coat, and how sampling shares its choices between them.
+//! light through the coat, and how sampling shares its choices between them; `eval`, `pdf` and
+//! `sample` compose them.
 use super::dielectric::refract;
 use super::fresnel;
 use super::microfacet::Microfacet;
-use super::reflect;
-use crate::geometry::Vec3A;
+use super::{Bsdf, BsdfSample, reflect};
+use crate::geometry::{Vec2, Vec3A, warp};
 use std::f32::consts::FRAC_1_PI;
 
 /// The keys of a scene file's material that a plastic reads.
@@ -181,4 +182,69 @@ pub(super) fn coat_reflection(coat: &RoughCoat, eta: f32, wi: Vec3A, wo: Vec3A) 
     let mf = coat.mf;
     let f = fresnel::dielectric(wi.dot(h), eta).0 * mf.d(h) * mf.g(wi, wo, h) / (4.0 * wi.z * wo.z);
     (f, mf.visible_pdf(wi, h) / (4.0 * cos))
+}
+
+/// `f(wi, wo)` of a plastic (both directions above the surface): the base's light through the
+/// coat, plus a rough coat's own reflection (a smooth coat's mirror is a delta lobe).
+#[inline]
+pub(super) fn eval(
+    diffuse: Vec3A,
+    eta: f32,
+    fdr_int: f32,
+    nonlinear: bool,
+    coat: Option<&RoughCoat>,
+    wi: Vec3A,
+    wo: Vec3A,
+) -> Vec3A {
+    let base = base(diffuse, eta, fdr_int, nonlinear, coat, wi, wo);
+    match coat {
+        Some(c) => base + Vec3A::splat(coat_reflection(c, eta, wi, wo).0),
+        None => base,
+    }
+}
+
+/// The density of [`sample`]'s non-delta directions (both above the surface): the rough
+/// coat's visible normals with the coat's probability, cosine sampling with the rest.
+#[inline]
+pub(super) fn pdf(eta: f32, specular_share: f32, coat: Option<&RoughCoat>, wi: Vec3A, wo: Vec3A) -> f32 {
+    let p = mirror_probability(eta, specular_share, coat, wi.z);
+    let coat_pdf = coat.map_or(0.0, |c| p * coat_reflection(c, eta, wi, wo).1);
+    coat_pdf + (1.0 - p) * wo.z * FRAC_1_PI
+}
+
+/// A direction scattered by plastic `bsdf` for `wi` (above the surface): the coat (its mirror,
+/// or a visible normal of the rough coat) with [`mirror_probability`], else a cosine direction
+/// into the base. A rough coat's lobes both reach any direction: the weight is the whole
+/// mixture's.
+pub(super) fn sample(bsdf: &Bsdf, wi: Vec3A, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    let Bsdf::Plastic { diffuse, eta, fdr_int, nonlinear, specular_share, coat } = *bsdf else {
+        return None;
+    };
+    match coat {
+        Some(c) => {
+            let p = mirror_probability(eta, specular_share, Some(&c), wi.z);
+            let wo = if u_lobe < p { reflect(wi, c.mf.sample_visible(wi, u)) } else { warp::cosine_hemisphere(u) };
+            if wo.z <= 0.0 {
+                return None;
+            }
+            let pdf = bsdf.pdf(wi, wo);
+            let weight = bsdf.eval(wi, wo) * (wo.z / pdf);
+            (pdf > 0.0 && weight.is_finite()).then_some(BsdfSample { wo, weight, pdf, delta: false })
+        }
+        None => {
+            let p = mirror_probability(eta, specular_share, None, wi.z);
+            if u_lobe < p {
+                let f = fresnel::dielectric(wi.z, eta).0;
+                let wo = Vec3A::new(-wi.x, -wi.y, wi.z);
+                return Some(BsdfSample { wo, weight: Vec3A::splat(f / p), pdf: 1.0, delta: true });
+            }
+            let wo = warp::cosine_hemisphere(u);
+            let pdf = (1.0 - p) * wo.z * FRAC_1_PI;
+            if pdf <= 0.0 {
+                return None;
+            }
+            let f = base(diffuse, eta, fdr_int, nonlinear, None, wi, wo);
+            Some(BsdfSample { wo, weight: f * wo.z / pdf, pdf, delta: false })
+        }
+    }
 }
