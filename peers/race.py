@@ -81,8 +81,10 @@ def mitsuba_render(scene, spp, seed):
     return img, time.perf_counter() - start
 
 
-def main():
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def race_arguments(doc):
+    """The command line both races share: scene, output folder, time, seeds, threads, reference
+    samples, zvidpt's integrators and binary."""
+    p = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("scene")
     p.add_argument("out")
     p.add_argument("--time", type=float, default=20.0)
@@ -91,40 +93,102 @@ def main():
     p.add_argument("--ref-spp", type=int, default=8192)
     p.add_argument("--integrators", default="path;zvidpt")
     p.add_argument("--zvidpt", default=str(DEFAULT_BIN))
+    return p
+
+
+def references(zvidpt, scene, out, ref_spp, extra):
+    """Two `zvidpt reference` renders of half `ref_spp` each, independent (seeds apart from the
+    races'), kept as OUT/ref-0.exr and ref-1.exr while up to date: their mean is the reference,
+    and their spread measures its own noise, which every MSE against it contains. Returns the
+    reference, the per-pixel variance of its mean, and that variance's mean (the noise)."""
+    halves = []
+    for k in (0, 1):
+        ref_path = out / f"ref-{k}.exr"
+        run([zvidpt, "reference", scene, "--spp", max(1, ref_spp // 2), "--seed", 1_000_003 + k, "-o", ref_path,
+             "-q", *extra])
+        halves.append(read_exr(ref_path)[0])
+    ref = (halves[0] + halves[1]) / 2
+    # Per pixel, (a - b)^2 / 4 estimates the variance of the mean of two independent renders.
+    ref_pixel_var = (halves[0] - halves[1]) ** 2 / 4
+    return ref, ref_pixel_var, float(ref_pixel_var.mean())
+
+
+def race_zvidpt(zvidpt, scene, out, integrators, seeds, seconds, extra, ref, ref_noise):
+    """zvidpt with each integrator (`;` between flag strings) and seed for `seconds`: a row
+    (renderer, integrator, seed, seconds, MSE less the reference's noise) per render."""
+    rows = []
+    for flags in [f.split() for f in integrators.split(";") if f.strip()]:
+        name = " ".join(flags)
+        for seed in seeds:
+            img = out / f"zvidpt-{'-'.join(flags).lstrip('-')}-{seed}.exr"
+            o = run([zvidpt, "render", scene, "--integrator", *flags, "--time", seconds, "--seed", seed, "-o", img,
+                     "--no-png", *extra])
+            rgb, _ = read_exr(img)
+            secs = zvidpt_seconds(o)
+            mse = float(((rgb - ref) ** 2).mean()) - ref_noise
+            rows.append(("zvidpt", name, seed, secs, mse))
+            print(f"zvidpt {name} seed {seed}: {secs:.2f} s, MSE {mse:.4g}", flush=True)
+    return rows
+
+
+def translation_check(images, ref, ref_pixel_var):
+    """A peer's mean image over its seeds against the reference's mean, per channel: whether
+    |z| < 4 on every channel, the ratios and the z (variance from the spread between the first
+    two seeds, per pixel (a - b)^2 / 2, and from the reference's halves)."""
+    mean = np.mean(images, axis=0)
+    pixels = mean.shape[0] * mean.shape[1]
+    if len(images) >= 2:
+        spread = ((images[0] - images[1]) ** 2 / 2).sum(axis=(0, 1)) / pixels**2 / len(images)
+    else:
+        spread = np.zeros(3)
+    ref_var_mean = ref_pixel_var.sum(axis=(0, 1)) / pixels**2
+    diff = mean.mean(axis=(0, 1)) - ref.mean(axis=(0, 1))
+    z = diff / np.sqrt(np.maximum(spread + ref_var_mean, 1e-30))
+    ratio = mean.mean(axis=(0, 1)) / np.maximum(ref.mean(axis=(0, 1)), 1e-30)
+    return bool(np.all(np.abs(z) < 4.0)), ratio, z
+
+
+def write_results(out, name, rows, preamble, mismatched):
+    """OUT/NAME.csv (a row per render) and OUT/NAME.md (`preamble`, then a row per renderer and
+    integrator: means over the seeds; `mismatched` (renderer, integrator) pairs are marked)."""
+    with open(out / f"{name}.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["renderer", "integrator", "seed", "seconds", "mse", "mse_x_seconds"])
+        for r in rows:
+            w.writerow([*r, r[3] * r[4]])
+    lines = [
+        preamble,
+        "",
+        "| renderer | integrator | seconds | MSE | MSE x seconds | spread of MSE x seconds over seeds |",
+        "|---|---|---|---|---|---|",
+    ]
+    groups = {}
+    for r in rows:
+        groups.setdefault((r[0], r[1]), []).append(r)
+    for (renderer, integrator), rs in groups.items():
+        secs = sum(r[3] for r in rs) / len(rs)
+        mse = sum(r[4] for r in rs) / len(rs)
+        ms = [r[3] * r[4] for r in rs]
+        flag = " (translation mismatch)" if (renderer, integrator) in mismatched else ""
+        lines.append(f"| {renderer} | {integrator}{flag} | {secs:.2f} | {mse:.4g} | {sum(ms) / len(ms):.4g} | "
+                     f"{min(ms):.4g} - {max(ms):.4g} |")
+    (out / f"{name}.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    if not all(math.isfinite(r[4]) for r in rows):
+        sys.exit("a render produced a non-finite MSE")
+
+
+def main():
+    p = race_arguments(__doc__)
     p.add_argument("-D", dest="defines", action="append", default=[], metavar="NAME=VALUE")
     a = p.parse_args()
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     seeds = [int(s) for s in a.seeds.split(",")]
     defines = [x for d in a.defines for x in ("-D", d)]
-    threads = ["--threads", str(a.threads)]
-
-    # Two references of half the samples each, independent (seeds apart from the renders'): their mean is the
-    # reference, and their spread measures its own noise, which every MSE against it contains;
-    # each MSE below is less it (an unbiased estimate of the error against the converged image).
-    halves = []
-    for k in (0, 1):
-        ref_path = out / f"ref-{k}.exr"
-        run([a.zvidpt, "reference", a.scene, "--spp", max(1, a.ref_spp // 2), "--seed", 1_000_003 + k, "-o",
-             ref_path, "-q", *threads, *defines])
-        halves.append(read_exr(ref_path)[0])
-    ref = (halves[0] + halves[1]) / 2
-    # Per pixel, (a - b)^2 / 4 estimates the variance of the mean of two independent renders.
-    ref_pixel_var = (halves[0] - halves[1]) ** 2 / 4
-    ref_noise = float(ref_pixel_var.mean())
-    rows = []
-
-    for flags in [f.split() for f in a.integrators.split(";") if f.strip()]:
-        name = " ".join(flags)
-        for seed in seeds:
-            img = out / f"zvidpt-{'-'.join(flags).lstrip('-')}-{seed}.exr"
-            o = run([a.zvidpt, "render", a.scene, "--integrator", *flags, "--time", a.time, "--seed", seed,
-                     "-o", img, "--no-png", *threads, *defines])
-            rgb, _ = read_exr(img)
-            secs = zvidpt_seconds(o)
-            mse = float(((rgb - ref) ** 2).mean()) - ref_noise
-            rows.append(("zvidpt", name, seed, secs, mse))
-            print(f"zvidpt {name} seed {seed}: {secs:.2f} s, MSE {mse:.4g}", flush=True)
+    extra = ["--threads", str(a.threads), *defines]
+    ref, ref_pixel_var, ref_noise = references(a.zvidpt, a.scene, out, a.ref_spp, extra)
+    rows = race_zvidpt(a.zvidpt, a.scene, out, a.integrators, seeds, a.time, extra, ref, ref_noise)
 
     import drjit as dr
     import mitsuba as mi
@@ -145,49 +209,15 @@ def main():
         print(f"mitsuba path {spp} spp seed {seed}: {secs:.2f} s, MSE {mse:.4g}", flush=True)
 
     # The translation check: Mitsuba's mean image against the reference's, per channel.
-    mean = np.mean(images, axis=0)
-    pixels = mean.shape[0] * mean.shape[1]
-    if len(images) >= 2:
-        spread = ((images[0] - images[1]) ** 2 / 2).sum(axis=(0, 1)) / pixels**2 / len(images)
-    else:
-        spread = np.zeros(3)
-    ref_var_mean = ref_pixel_var.sum(axis=(0, 1)) / pixels**2
-    diff = mean.mean(axis=(0, 1)) - ref.mean(axis=(0, 1))
-    z = diff / np.sqrt(np.maximum(spread + ref_var_mean, 1e-30))
-    ratio = mean.mean(axis=(0, 1)) / np.maximum(ref.mean(axis=(0, 1)), 1e-30)
-    matched = bool(np.all(np.abs(z) < 4.0))
+    matched, ratio, z = translation_check(images, ref, ref_pixel_var)
     check = (f"Mitsuba 3 mean / reference mean: {ratio[0]:.4f}, {ratio[1]:.4f}, {ratio[2]:.4f} "
              f"(z {z[0]:.2f}, {z[1]:.2f}, {z[2]:.2f}): {'matches' if matched else 'MISMATCH'}")
     print(check)
-
-    with open(out / "race.csv", "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["renderer", "integrator", "seed", "seconds", "mse", "mse_x_seconds"])
-        for r in rows:
-            w.writerow([*r, r[3] * r[4]])
-    lines = [
-        f"Equal time {a.time:g} s, {a.threads} threads, seeds {a.seeds}; MSE against `zvidpt reference` "
-        f"(path, {a.ref_spp} spp in two independent halves) less the reference's own noise ({ref_noise:.3g}, "
-        f"from the halves' spread). "
-        f"{check}.",
-        "",
-        "| renderer | integrator | seconds | MSE | MSE x seconds | spread of MSE x seconds over seeds |",
-        "|---|---|---|---|---|---|",
-    ]
-    groups = {}
-    for r in rows:
-        groups.setdefault((r[0], r[1]), []).append(r)
-    for (renderer, name), rs in groups.items():
-        secs = sum(r[3] for r in rs) / len(rs)
-        mse = sum(r[4] for r in rs) / len(rs)
-        ms = [r[3] * r[4] for r in rs]
-        flag = "" if renderer == "zvidpt" or matched else " (translation mismatch)"
-        lines.append(f"| {renderer} | {name}{flag} | {secs:.2f} | {mse:.4g} | {sum(ms) / len(ms):.4g} | "
-                     f"{min(ms):.4g} - {max(ms):.4g} |")
-    (out / "race.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
-    if not all(math.isfinite(r[4]) for r in rows):
-        sys.exit("a render produced a non-finite MSE")
+    preamble = (f"Equal time {a.time:g} s, {a.threads} threads, seeds {a.seeds}; MSE against `zvidpt reference` "
+                f"(path, {a.ref_spp} spp in two independent halves) less the reference's own noise ({ref_noise:.3g}, "
+                f"from the halves' spread). {check}.")
+    mismatched = set() if matched else {r[:2] for r in rows if r[0] == "mitsuba"}
+    write_results(out, "race", rows, preamble, mismatched)
 
 
 if __name__ == "__main__":

@@ -31,8 +31,6 @@ figures are not race results.
 
 Writes OUT/cycles.csv and OUT/cycles.md.
 """
-import argparse
-import csv
 import math
 import sys
 import time
@@ -43,7 +41,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from race import DEFAULT_BIN, read_exr, run, zvidpt_seconds  # noqa: E402
+from race import race_arguments, race_zvidpt, read_exr, references, translation_check, write_results  # noqa: E402
 
 MESH_KEYS = {"obj", "material"}
 MATERIAL_KEYS = {"diffuse", "emission"}
@@ -238,51 +236,20 @@ def cycles_render(scene, path, seconds, seed, guiding):
 
 
 def main():
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("scene")
-    p.add_argument("out")
-    p.add_argument("--time", type=float, default=20.0)
-    p.add_argument("--seeds", default="1,2")
-    p.add_argument("--threads", type=int, default=2)
-    p.add_argument("--ref-spp", type=int, default=8192)
-    p.add_argument("--integrators", default="path;zvidpt")
+    p = race_arguments(__doc__)
     p.add_argument("--resolution", default=None, help="WxH (default: the scene's)")
-    p.add_argument("--zvidpt", default=str(DEFAULT_BIN))
     a = p.parse_args()
     folder = Path(a.scene)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     seeds = [int(s) for s in a.seeds.split(",")]
-    threads = ["--threads", str(a.threads)]
+    extra = ["--threads", str(a.threads)]
     width = height = None
-    res = []
     if a.resolution:
         width, height = (int(x) for x in a.resolution.lower().split("x"))
-        res = ["--resolution", a.resolution]
-
-    halves = []
-    for k in (0, 1):
-        ref_path = out / f"ref-{k}.exr"
-        run([a.zvidpt, "reference", folder, "--spp", max(1, a.ref_spp // 2), "--seed", 1_000_003 + k, "-o",
-             ref_path, "-q", *threads, *res])
-        halves.append(read_exr(ref_path)[0])
-    ref = (halves[0] + halves[1]) / 2
-    ref_pixel_var = (halves[0] - halves[1]) ** 2 / 4
-    ref_noise = float(ref_pixel_var.mean())
-    pixels = ref.shape[0] * ref.shape[1]
-    rows = []
-
-    for flags in [f.split() for f in a.integrators.split(";") if f.strip()]:
-        name = " ".join(flags)
-        for seed in seeds:
-            img = out / f"zvidpt-{'-'.join(flags).lstrip('-')}-{seed}.exr"
-            o = run([a.zvidpt, "render", folder, "--integrator", *flags, "--time", a.time, "--seed", seed,
-                     "-o", img, "--no-png", *threads, *res])
-            rgb, _ = read_exr(img)
-            secs = zvidpt_seconds(o)
-            mse = float(((rgb - ref) ** 2).mean()) - ref_noise
-            rows.append(("zvidpt", name, seed, secs, mse))
-            print(f"zvidpt {name} seed {seed}: {secs:.2f} s, MSE {mse:.4g}", flush=True)
+        extra += ["--resolution", a.resolution]
+    ref, ref_pixel_var, ref_noise = references(a.zvidpt, folder, out, a.ref_spp, extra)
+    rows = race_zvidpt(a.zvidpt, folder, out, a.integrators, seeds, a.time, extra, ref, ref_noise)
 
     scene = build_cycles_scene(folder, width, height, a.threads)
     print(f"Cycles: sampling pattern {scene.cycles.sampling_pattern}", flush=True)
@@ -300,47 +267,20 @@ def main():
             mse = float(((rgb - ref) ** 2).mean()) - ref_noise
             rows.append(("cycles", name, seed, secs, mse))
             print(f"cycles {name} seed {seed}: {secs:.2f} s, MSE {mse:.4g}", flush=True)
-        mean = np.mean(images, axis=0)
-        spread = (((images[0] - images[1]) ** 2 / 2).sum(axis=(0, 1)) / pixels**2 / len(images)
-                  if len(images) >= 2 else np.zeros(3))
-        diff = mean.mean(axis=(0, 1)) - ref.mean(axis=(0, 1))
-        z = diff / np.sqrt(np.maximum(spread + ref_pixel_var.sum(axis=(0, 1)) / pixels**2, 1e-30))
-        ratio = mean.mean(axis=(0, 1)) / np.maximum(ref.mean(axis=(0, 1)), 1e-30)
-        matched = bool(np.all(np.abs(z) < 4.0))
+        matched, ratio, z = translation_check(images, ref, ref_pixel_var)
         print(f"Cycles {name} mean / reference mean: {ratio[0]:.4f}, {ratio[1]:.4f}, {ratio[2]:.4f} "
               f"(z {z[0]:.2f}, {z[1]:.2f}, {z[2]:.2f}): {'matches' if matched else 'MISMATCH'}", flush=True)
         checks[name] = (matched, ratio, z)
 
-    with open(out / "cycles.csv", "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["renderer", "integrator", "seed", "seconds", "mse", "mse_x_seconds"])
-        for r in rows:
-            w.writerow([*r, r[3] * r[4]])
-    lines = [
+    preamble = (
         f"Equal time {a.time:g} s, {a.threads} threads, seeds {a.seeds}; MSE against `zvidpt reference` "
         f"(path, {a.ref_spp} spp in two independent halves) less the reference's own noise ({ref_noise:.3g}). "
         f"Cycles {scene.cycles.sampling_pattern} sampling pattern. Translation checks (image mean / reference "
         "mean per channel, z): "
         + "; ".join(f"{n}: {r[0]:.4f}, {r[1]:.4f}, {r[2]:.4f} (|z| <= {np.abs(z).max():.2f}, "
-                    f"{'matches' if m else 'MISMATCH'})" for n, (m, r, z) in checks.items()) + ".",
-        "",
-        "| renderer | integrator | seconds | MSE | MSE x seconds | spread of MSE x seconds over seeds |",
-        "|---|---|---|---|---|---|",
-    ]
-    groups = {}
-    for r in rows:
-        groups.setdefault((r[0], r[1]), []).append(r)
-    for (renderer, name), rs in groups.items():
-        secs = sum(r[3] for r in rs) / len(rs)
-        mse = sum(r[4] for r in rs) / len(rs)
-        ms = [r[3] * r[4] for r in rs]
-        flag = "" if renderer == "zvidpt" or checks[name][0] else " (translation mismatch)"
-        lines.append(f"| {renderer} | {name}{flag} | {secs:.2f} | {mse:.4g} | {sum(ms) / len(ms):.4g} | "
-                     f"{min(ms):.4g} - {max(ms):.4g} |")
-    (out / "cycles.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
-    if not all(math.isfinite(r[4]) for r in rows):
-        sys.exit("a render produced a non-finite MSE")
+                    f"{'matches' if m else 'MISMATCH'})" for n, (m, r, z) in checks.items()) + ".")
+    mismatched = {("cycles", n) for n, (m, _, _) in checks.items() if not m}
+    write_results(out, "cycles", rows, preamble, mismatched)
 
 
 if __name__ == "__main__":

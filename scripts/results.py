@@ -125,22 +125,32 @@ def cornell_paper(a, s, out, log):
     return "\n".join(lines), head
 
 
-def race(a, s, out, log):
-    """zvidpt against Mitsuba 3 on cornell-mitsuba; None without mitsuba."""
-    if subprocess.run([sys.executable, "-c", "import mitsuba, numpy, OpenEXR"], capture_output=True).returncode != 0:
-        print("(no mitsuba/numpy/OpenEXR for this Python: the race against Mitsuba 3 is skipped)", file=sys.stderr)
+def peer_race(a, out, log, modules, what, script, scene, seconds, args, name):
+    """Runs a race script of peers/ (None when this Python lacks `modules`); returns its table,
+    stamped, and each (renderer, integrator)'s mean MSE x seconds over the seeds."""
+    if subprocess.run([sys.executable, "-c", f"import {modules}"], capture_output=True).returncode != 0:
+        print(f"(no {modules.replace(', ', '/')} for this Python: the race against {what} is skipped)",
+              file=sys.stderr)
         return None
     t0 = time.time()
-    d = out / "race"
-    run([sys.executable, "peers/race.py", "scenes/cornell-mitsuba/scene.xml", d, "--time", s["race_time"], "--seeds",
-         s["race_seeds"], "--ref-spp", s["race_ref"], "--zvidpt", a.zvidpt], log)
-    rows = read_csv(d / "race.csv")
+    d = out / name
+    run([sys.executable, "-W", "ignore", script, scene, d, "--time", seconds, *args, "--zvidpt", a.zvidpt], log)
     by = {}
-    for r in rows:
+    for r in read_csv(d / f"{name}.csv"):
         by.setdefault((r["renderer"], r["integrator"]), []).append(float(r["mse_x_seconds"]))
     mean = {k: sum(v) / len(v) for k, v in by.items()}
+    return stamp(a.m, a.mode, time.time() - t0) + "\n\n" + (d / f"{name}.md").read_text().strip(), mean
+
+
+def race(a, s, out, log):
+    """zvidpt against Mitsuba 3 on cornell-mitsuba; None without mitsuba."""
+    r = peer_race(a, out, log, "mitsuba, numpy, OpenEXR", "Mitsuba 3", "peers/race.py",
+                  "scenes/cornell-mitsuba/scene.xml", s["race_time"],
+                  ["--seeds", s["race_seeds"], "--ref-spp", s["race_ref"]], "race")
+    if r is None:
+        return None
+    md, mean = r
     mitsuba = [v for (renderer, _), v in mean.items() if renderer != "zvidpt"]
-    md = stamp(a.m, a.mode, time.time() - t0) + "\n\n" + (d / "race.md").read_text().strip()
     head = (f"MSE × seconds at {s['race_time']} s", f"{mean[('zvidpt', 'path')]:.4f}",
             f"**{mean[('zvidpt', 'zvidpt')]:.4f}**", f"Mitsuba 3 `path`: {mitsuba[0]:.4f}" if mitsuba else "")
     return md, head
@@ -148,20 +158,12 @@ def race(a, s, out, log):
 
 def cycles(a, s, out, log):
     """zvidpt against Cycles on cornell-paper; None without bpy."""
-    if subprocess.run([sys.executable, "-c", "import bpy, numpy, OpenEXR"], capture_output=True).returncode != 0:
-        print("(no bpy/numpy/OpenEXR for this Python: the race against Cycles is skipped)", file=sys.stderr)
+    r = peer_race(a, out, log, "bpy, numpy, OpenEXR", "Cycles", "peers/race_cycles.py", "scenes/cornell-paper",
+                  s["cycles_time"], ["--seeds", "1,2", "--ref-spp", s["cycles_ref"], "--integrators",
+                                     s["cycles_integrators"]], "cycles")
+    if r is None:
         return None
-    t0 = time.time()
-    d = out / "cycles"
-    run([sys.executable, "-W", "ignore", "peers/race_cycles.py", "scenes/cornell-paper", d, "--time", s["cycles_time"],
-         "--seeds", "1,2", "--ref-spp", s["cycles_ref"], "--integrators", s["cycles_integrators"], "--zvidpt",
-         a.zvidpt], log)
-    rows = read_csv(d / "cycles.csv")
-    by = {}
-    for r in rows:
-        by.setdefault((r["renderer"], r["integrator"]), []).append(float(r["mse_x_seconds"]))
-    mean = {k: sum(v) / len(v) for k, v in by.items()}
-    md = stamp(a.m, a.mode, time.time() - t0) + "\n\n" + (d / "cycles.md").read_text().strip()
+    md, mean = r
     peers = ", ".join(f"Cycles {name}: {v:.4f}" for (renderer, name), v in mean.items() if renderer == "cycles")
     head = (f"MSE × seconds at {s['cycles_time']} s", f"{mean[('zvidpt', 'path')]:.4f}",
             f"**{mean[('zvidpt', 'zvidpt')]:.4f}**", peers)
@@ -207,11 +209,11 @@ def suite(a, s, out, log):
 def replace_section(path, name, body):
     """Replaces the text between `<!-- results: NAME -->` and `<!-- /results: NAME -->`."""
     text = path.read_text()
-    pattern = re.compile(rf"(<!-- results: {re.escape(name)} -->\n).*?(\n<!-- /results: {re.escape(name)} -->)", re.S)
+    pattern = re.compile(rf"(<!-- results: {re.escape(name)} -->\n).*?(\n?<!-- /results: {re.escape(name)} -->)", re.S)
     if not pattern.search(text):
         sys.exit(f"{path}: no `<!-- results: {name} -->` section")
     tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(pattern.sub(lambda m: m.group(1) + body + m.group(2), text))
+    tmp.write_text(pattern.sub(lambda m: m.group(1) + body + "\n" + m.group(2).lstrip("\n"), text))
     tmp.replace(path)
 
 
