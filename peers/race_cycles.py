@@ -4,10 +4,11 @@
     python3 peers/race_cycles.py SCENE_DIR OUT [--time 20] [--seeds 1,2] [--threads 2] [--ref-spp 8192]
         [--integrators "path;zvidpt"] [--resolution WxH] [--zvidpt BIN]
 
-SCENE_DIR is a zvidpt TOML scene of the subset Cycles can be given exactly (`scenes/cornell-paper`):
-a pinhole camera (`eye`, `look_at`, `up`, vertical `fov_y`), the one-pixel box filter, OBJ meshes
-with two-sided Lambertian materials (MTL `Kd`, or a `[materials]` entry's `diffuse`) and
-one-sided emitters (`emission`). Anything else is refused rather than approximated. The
+SCENE_DIR is a zvidpt TOML scene of the subset Cycles can be given exactly (`scenes/cornell-paper`,
+`cornell-blocks`, `cornell-classic`, `partition`): a pinhole camera (`eye`, `look_at`, `up`,
+vertical `fov_y`), the one-pixel box filter, OBJ meshes (`reverse_winding` allowed) with
+two-sided Lambertian materials (MTL `Kd`, or a `[materials]` entry's `diffuse`) and one-sided
+emitters (`emission`). Anything else is refused rather than approximated. The
 translation into Cycles:
 
 - each OBJ imported without axis conversion (zvidpt's coordinates as they are), each material a
@@ -43,7 +44,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 from race import race_arguments, race_zvidpt, read_exr, references, translation_check, write_results  # noqa: E402
 
-MESH_KEYS = {"obj", "material"}
+MESH_KEYS = {"obj", "material", "reverse_winding"}
 MATERIAL_KEYS = {"diffuse", "emission"}
 CAMERA_KEYS = {"eye", "look_at", "up", "fov_y", "width", "height"}
 
@@ -160,6 +161,8 @@ def build_cycles_scene(folder, width, height, threads):
         imported = [o for o in bpy.data.objects if o not in before]
         kd = mtl_colours(obj_path)
         for o in imported:
+            if mesh.get("reverse_winding", False):
+                o.data.flip_normals()
             if "material" in mesh:
                 o.data.materials.clear()
                 o.data.materials.append(material_named(mesh["material"], True, kd))
