@@ -85,7 +85,7 @@ def mtl_colours(obj_path):
                     name = t[1]
                 elif t and t[0] == "Kd" and name:
                     colours[name] = [float(x) for x in t[1:4]]
-                elif t and t[0] not in ("newmtl", "Kd", "#") and not t[0].startswith("#"):
+                elif t and t[0] not in ("newmtl", "Kd") and not t[0].startswith("#"):
                     refuse(f"MTL statement {t[0]}")
     return colours
 

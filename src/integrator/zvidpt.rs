@@ -334,6 +334,7 @@ impl LearnedZvidpt {
     ) -> (Deposits, Vec<[f64; 3]>, Vec<[f64; 3]>) {
         type Row = Vec<([f64; 3], [f64; 3])>;
         let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
+        let walker = Walker { zvidpt: self, ctx, guide };
         // Each worker deposits into its own accumulators, summed afterwards (integer sums:
         // the same bits however rayon split the rows).
         let (deposits, mut rows) = (0..height)
@@ -352,13 +353,7 @@ impl LearnedZvidpt {
                         // aligned block: stratified by itself, and with the others).
                         for s in spp..2 * spp {
                             let mut rng = SampleStream::new(seed, y * width + x, s);
-                            let v = Walker { zvidpt: self, ctx, guide }.camera_sample(
-                                pixel,
-                                reference,
-                                &mut rng,
-                                &mut scratch,
-                                Some(&mut deposits),
-                            );
+                            let v = walker.camera_sample(pixel, reference, &mut rng, &mut scratch, Some(&mut deposits));
                             let v = if v.is_finite() { v } else { Vec3A::ZERO };
                             for c in 0..3 {
                                 sum[c] += f64::from(v[c]);
@@ -419,6 +414,7 @@ impl LearnedZvidpt {
     ) -> (f64, f64) {
         let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
         let stride = probe_stride(width, height);
+        let walker = guide.map(|guide| Walker { zvidpt: self, ctx, guide });
         let (mut rows, rays) = (0..height.div_ceil(stride))
             .into_par_iter()
             .map(|i| stride * i)
@@ -439,14 +435,8 @@ impl LearnedZvidpt {
                                 // Keyed apart for the two walks; the film point is the centre.
                                 let key = 2 * u64::from(s) + u64::from(guide.is_some());
                                 let mut rng = SampleStream::in_domain(Domain::Probe, seed, index, key);
-                                let v = match guide {
-                                    Some(g) => Walker { zvidpt: self, ctx, guide: g }.camera_sample(
-                                        pixel,
-                                        reference,
-                                        &mut rng,
-                                        &mut scratch,
-                                        None,
-                                    ),
+                                let v = match &walker {
+                                    Some(w) => w.camera_sample(pixel, reference, &mut rng, &mut scratch, None),
                                     None => path.sample(ctx, pixel, &(), &mut rng, &mut scratch),
                                 };
                                 let v = if v.is_finite() { v } else { Vec3A::ZERO };
@@ -537,7 +527,7 @@ impl<A: Accel> Walker<'_, A> {
     }
 
     /// An unbiased estimate of `Lr` leaving `si` towards `si.wo`, from a walk (tree, when
-    /// split) carrying path weight `weight`; deposits what it learns when the guide learns.
+    /// split) in state `walk`; deposits what it learns when the guide learns.
     fn reflected(
         &self,
         si: &SurfaceInteraction,

@@ -95,18 +95,6 @@ impl AreaLights {
         lights
     }
 
-    /// The number of emitting triangles.
-    #[must_use]
-    pub fn len(&self) -> usize {
-        self.prims.len()
-    }
-
-    /// Whether no triangle emits.
-    #[must_use]
-    pub fn is_empty(&self) -> bool {
-        self.prims.is_empty()
-    }
-
     /// Total power, `Σ π · area · Le` (twice for two-sided emitters), RGB.
     #[must_use]
     pub fn power(&self) -> Vec3A {

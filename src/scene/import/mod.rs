@@ -4,6 +4,7 @@ pub(crate) mod mitsuba;
 pub(crate) mod pbrt;
 
 use super::description::{CameraDescription, InlineMesh, MeshDescription, SceneDescription, ShapeDescription};
+use super::limits::MAX_SCENE_BYTES;
 use crate::error::{Error, Result};
 use glam::{DMat4, DVec3};
 use std::collections::BTreeMap;
@@ -38,8 +39,6 @@ pub(crate) fn unsupported(strict: bool, warnings: &mut Vec<String>, at: &At, mes
     Ok(())
 }
 
-/// Largest included file read (text), as for a scene file.
-const MAX_FILE_BYTES: u64 = 16 << 20;
 /// Deepest nesting of included files (a cycle stops here).
 const MAX_INCLUDE_DEPTH: usize = 16;
 /// Most files read in all (files that include each other many times over would otherwise
@@ -70,7 +69,7 @@ impl Includes {
         if self.files.len() > MAX_INCLUDES {
             return Err(syntax(at, format!("more than {MAX_INCLUDES} included files")));
         }
-        let text = crate::io::read_text(path, MAX_FILE_BYTES, "included file")?;
+        let text = crate::io::read_text(path, MAX_SCENE_BYTES, "included file")?;
         self.files.push(path.to_path_buf());
         self.depth += 1;
         Ok(text)
