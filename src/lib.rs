@@ -42,6 +42,7 @@ pub mod io;
 pub mod learned_guide;
 pub mod light;
 pub mod material;
+pub mod medium;
 pub mod photon;
 pub mod plot;
 pub mod render;

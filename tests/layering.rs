@@ -12,7 +12,7 @@ const LAYERS: &[&[&str]] = &[
     &["sampler"],
     &["geometry"],
     &["film"],
-    &["texture", "material", "light", "accel"],
+    &["texture", "material", "medium", "light", "accel"],
     &["scene"],
     &["photon"],
     &["learned_guide"],

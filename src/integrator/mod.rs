@@ -8,6 +8,7 @@ mod jensen;
 pub mod mixture;
 pub mod path;
 pub mod photon_guided;
+mod volume;
 pub mod zvidpt;
 mod zvidpt_paper;
 
@@ -46,6 +47,8 @@ pub struct RenderContext<'a, A: Accel> {
     pub training_iterations: Option<u32>,
     /// [`Scene::lambertian_only`], once per render.
     pub lambertian_only: bool,
+    /// [`Scene::volumetric`], once per render: paths must track media.
+    pub volumetric: bool,
     /// The longest path counted, in segments (`u32::MAX`: unbounded): the scene's
     /// `max_depth` (Mitsuba's), honoured by `path`, `jensen` and the learned integrator.
     pub max_depth: u32,

@@ -85,6 +85,9 @@ impl Integrator for PathTracer {
         // A bound on the path depth is a third variant. The general loops are called, not
         // inlined here: inlining all three into the tile loop cost the Lambertian one 0.4%.
         let (r, m) = (self.rr_depth, self.mis);
+        if ctx.volumetric {
+            return super::volume::trace_volume_path(ctx, pixel, rng, scratch, r, m);
+        }
         match (self.mis != Mis::All && ctx.lambertian_only, ctx.max_depth != u32::MAX) {
             (true, false) => trace_path::<A, true, false>(ctx, pixel, rng, scratch, r, m, sample_bsdf),
             (false, false) => general_path::<A, false>(ctx, pixel, rng, scratch, r, m),

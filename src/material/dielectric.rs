@@ -76,7 +76,8 @@ pub(super) fn sample_dielectric(
     let (wi_up, _, eta_up) = upper(eta, wi, wi);
     if thin {
         // A sheet: reflectance R + T²R/(1 − R²) of the two surfaces, the rest straight through.
-        let r = fresnel::dielectric(wi_up.z, eta).0;
+        // (Index 1, a medium's boundary: exactly nothing is reflected.)
+        let r = if eta == 1.0 { 0.0 } else { fresnel::dielectric(wi_up.z, eta).0 };
         let r = if r < 1.0 { r + (1.0 - r) * (1.0 - r) * r / (1.0 - r * r) } else { 1.0 };
         let wo = if u_lobe < r { Vec3A::new(-wi.x, -wi.y, wi.z) } else { -wi };
         return Some(BsdfSample { wo, weight: Vec3A::ONE, pdf: 1.0, delta: true });

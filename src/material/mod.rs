@@ -94,6 +94,20 @@ impl Bsdf {
         Bsdf::Dielectric { eta, roughness, thin: false }
     }
 
+    /// No surface: the boundary of a participating medium, which light crosses unchanged (a
+    /// thin sheet of index 1, which reflects nothing).
+    #[must_use]
+    pub fn interface() -> Self {
+        Bsdf::Dielectric { eta: 1.0, roughness: None, thin: true }
+    }
+
+    /// Whether this is [`Bsdf::interface`]: a path crossing it has not scattered.
+    #[inline]
+    #[must_use]
+    pub fn is_interface(&self) -> bool {
+        matches!(self, Bsdf::Dielectric { eta, thin: true, .. } if *eta == 1.0)
+    }
+
     /// Smooth plastic: diffuse `reflectance` under a coat of index `eta` (Mitsuba's defaults:
     /// `eta` 1.49, linear).
     #[must_use]

@@ -18,7 +18,7 @@ use crate::scene::Scene;
 use crate::{Error, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
-pub use scene::{render_scene, render_scene_with_aovs};
+pub use scene::{MEDIA_NOTE, render_scene, render_scene_with_aovs};
 use std::io::IsTerminal;
 use std::time::Instant;
 
@@ -250,6 +250,7 @@ fn render_in_pool<A: Accel, I: Integrator>(
         spp: settings.spp,
         training_iterations: resume.and_then(|r| r.training_iterations),
         lambertian_only: scene.lambertian_only(),
+        volumetric: scene.volumetric(),
         max_depth: scene.render.max_depth.unwrap_or(u32::MAX),
     };
     let prepass = integrator.prepare(&ctx, settings.seed)?;

@@ -8,6 +8,9 @@ use crate::film::Image;
 use crate::integrator::{IntegratorSettings, Jensen, LearnedZvidpt, PathTracer, Zvidpt};
 use crate::scene::Scene;
 
+/// What a render of a scene with media by the learned integrator reports it did instead.
+pub const MEDIA_NOTE: &str = "participating media: the learned walk does not model them, so `path` renders this scene";
+
 /// Renders with whichever backend the user chose: the one dynamic choice, at the top.
 struct RenderJob<'a> {
     scene: &'a Scene,
@@ -22,6 +25,11 @@ impl WithAccel for RenderJob<'_> {
     fn run<A: Accel>(self, accel: &A) -> Self::Output {
         let (scene, s) = (self.scene, self.settings);
         let (image, stats) = match self.integrator {
+            // The learned walk does not model media: such scenes are path traced.
+            IntegratorSettings::Learned(_) if scene.volumetric() => {
+                let (image, stats) = render(scene, accel, &mut PathTracer::default(), s)?;
+                (image, RenderStats { prepass: Some(MEDIA_NOTE.into()), ..stats })
+            }
             IntegratorSettings::Path { mis } => {
                 render(scene, accel, &mut PathTracer { mis: *mis, ..PathTracer::default() }, s)?
             }
@@ -61,6 +69,12 @@ pub fn render_scene_with_aovs(
     settings: &RenderSettings,
     aovs: bool,
 ) -> Result<(Image, RenderStats, &'static str, Option<Aovs>)> {
+    if scene.volumetric() && matches!(integrator, IntegratorSettings::Jensen(_) | IntegratorSettings::Paper { .. }) {
+        return Err(crate::Error::InvalidOption(format!(
+            "{}: this integrator does not track participating media; `path` renders them (and `zvidpt` hands them to it)",
+            scene.name
+        )));
+    }
     let (out, built) = with_backend_timed(backend, &scene.triangles, RenderJob { scene, integrator, settings, aovs })?;
     out.map(|(image, stats, name, aovs)| (image, RenderStats { build_seconds: built, ..stats }, name, aovs))
 }

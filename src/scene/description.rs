@@ -15,6 +15,10 @@ pub struct SceneDescription {
     /// Textures by name, for materials' `*_texture` keys.
     #[serde(default)]
     pub textures: BTreeMap<String, TextureDescription>,
+    /// Participating media by name, for materials' `interior_medium` and `exterior_medium`
+    /// and the camera's `medium`.
+    #[serde(default)]
+    pub media: BTreeMap<String, MediumDescription>,
     /// Meshes read from OBJ or PLY files (`[[mesh]]`).
     #[serde(default, rename = "mesh")]
     pub meshes: Vec<MeshDescription>,
@@ -208,6 +212,8 @@ pub struct CameraDescription {
     pub mirror: bool,
     /// The pixel reconstruction filter (default: the one-pixel box).
     pub filter: Option<PixelFilterDescription>,
+    /// The participating medium the camera sits in (a name from `[media]`; default none).
+    pub medium: Option<String>,
 }
 
 /// A pixel reconstruction filter (see [`crate::scene::filter`]): `box` (`radius` ½),
@@ -256,6 +262,26 @@ pub enum MaterialKind {
     ThinDielectric,
     /// A diffuse base under a dielectric coat.
     Plastic,
+    /// No surface at all: the boundary of a participating medium (pbrt-v4's `interface`,
+    /// Mitsuba 3's `null`). Light passes straight through.
+    Interface,
+}
+
+/// A homogeneous participating medium (see [`crate::medium::Medium`]): coefficients per unit
+/// length of the scene, multiplied by `scale`.
+#[derive(Debug, Deserialize, Clone, Default, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MediumDescription {
+    /// Absorption coefficient per channel.
+    #[serde(default)]
+    pub sigma_a: [f32; 3],
+    /// Scattering coefficient per channel.
+    #[serde(default)]
+    pub sigma_s: [f32; 3],
+    /// A factor on both coefficients (default 1).
+    pub scale: Option<f32>,
+    /// The Henyey–Greenstein phase function's asymmetry in `(-1, 1)` (default 0, isotropic).
+    pub g: Option<f32>,
 }
 
 /// A material: a scattering model (`type`, diffuse by default) with its parameters, and
@@ -307,6 +333,11 @@ pub struct MaterialDescription {
     pub specular_texture: Option<String>,
     /// A texture for the roughness `α` (conductor, dielectric): its luminance.
     pub roughness_texture: Option<String>,
+    /// The medium (a name from `[media]`) behind the surface, against its normal: surfaces
+    /// that name media decide which medium a ray crossing or leaving them is in.
+    pub interior_medium: Option<String>,
+    /// The medium in front of the surface, along its normal.
+    pub exterior_medium: Option<String>,
 }
 
 /// A microfacet distribution (see [`crate::material::microfacet::Distribution`]).

@@ -92,6 +92,7 @@ pub(super) fn bsdf_from(d: &MaterialDescription) -> std::result::Result<Bsdf, St
         K::Dielectric => material::dielectric::SCENE_KEYS,
         K::ThinDielectric => material::dielectric::THIN_SCENE_KEYS,
         K::Plastic => material::plastic::SCENE_KEYS,
+        K::Interface => &[],
     };
     let given = [
         ("diffuse", d.diffuse != [0.0; 3] && d.kind != K::Diffuse),
@@ -171,5 +172,6 @@ pub(super) fn bsdf_from(d: &MaterialDescription) -> std::result::Result<Bsdf, St
         K::Dielectric => Bsdf::dielectric(eta(1.5, true)?, rough),
         K::ThinDielectric => Bsdf::Dielectric { eta: eta(1.5, true)?, roughness: None, thin: true },
         K::Plastic => Bsdf::plastic_with(vec3(d.diffuse), eta(1.49, false)?, rough, d.nonlinear.unwrap_or(false)),
+        K::Interface => Bsdf::interface(),
     })
 }

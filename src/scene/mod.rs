@@ -12,6 +12,7 @@ pub mod import;
 mod light_tests;
 pub mod limits;
 mod materials;
+mod media;
 pub mod mesh;
 
 pub use camera::Camera;
@@ -157,6 +158,13 @@ pub struct Scene {
     pub sources: Vec<PathBuf>,
     /// The scene's own render defaults (sample count, path depth), below the command line's.
     pub render: RenderDescription,
+    /// Participating media (empty in most scenes).
+    pub media: Vec<crate::medium::Medium>,
+    /// The media on the two sides of each material's surfaces, parallel to `materials`
+    /// (shorter where the rest separate nothing).
+    pub material_media: Vec<crate::medium::MediumInterface>,
+    /// The medium the camera sits in.
+    pub camera_medium: Option<u16>,
 }
 
 /// The full shading record at a surface hit.
@@ -316,6 +324,9 @@ impl Scene {
             warnings,
             sources,
             render: RenderDescription::default(),
+            media: Vec::new(),
+            material_media: Vec::new(),
+            camera_medium: None,
         }
     }
 
@@ -394,6 +405,12 @@ impl Scene {
                 eat(2);
             }
         }
+        // Media only where a scene has them (older hashes stay valid).
+        if self.volumetric() {
+            format!("media {:?} {:?} {:?}", self.media, self.material_media, self.camera_medium)
+                .bytes()
+                .for_each(|b| eat(u32::from(b)));
+        }
         let c = &self.camera;
         for x in [c.width, c.height] {
             eat(x);
@@ -420,6 +437,20 @@ impl Scene {
     #[must_use]
     pub fn material_of(&self, prim: u32) -> &Material {
         &self.materials[self.triangle_material[prim as usize] as usize]
+    }
+
+    /// Whether light paths must track participating media: the scene has media, or surfaces
+    /// that bound them (which paths cross without scattering).
+    #[must_use]
+    pub fn volumetric(&self) -> bool {
+        !self.media.is_empty() || self.materials.iter().any(|m| m.bsdf.is_interface())
+    }
+
+    /// The media on the two sides of triangle `prim`.
+    #[inline]
+    #[must_use]
+    pub fn medium_interface(&self, prim: u32) -> crate::medium::MediumInterface {
+        self.material_media.get(self.triangle_material[prim as usize] as usize).copied().unwrap_or_default()
     }
 
     /// Whether every material is Lambertian and nothing lies beyond the scene (no

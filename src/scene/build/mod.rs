@@ -350,10 +350,14 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
     // A texture's mean is a pass over all its texels: computed once, when a material asks.
     let means: Vec<std::cell::OnceCell<Vec3A>> = textures.iter().map(|_| std::cell::OnceCell::new()).collect();
     let mean_of = |t: u16| *means[usize::from(t)].get_or_init(|| textures[usize::from(t)].mean());
+    let media = super::media::Media::from_description(path, &d)?;
+    let mut material_media = Vec::new();
     for (name, m) in &d.materials {
         meshes.by_name.insert(name.clone(), meshes.materials.len() as u32);
         meshes.materials.push(material_from(path, name, m, &texture_ids, mean_of)?);
+        material_media.push(media.interface_of(path, name, m)?);
     }
+    let camera_medium = media.id(path, "camera", d.camera.medium.as_ref())?;
 
     let mut sources = Vec::new();
     let mut read_before: HashMap<MeshKey, Geometry> = HashMap::new();
@@ -443,6 +447,11 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
     scene.attributes = attributes;
     scene.textures = textures;
     scene.texture_uv = texture_uv;
+    if material_media.iter().any(|m| *m != crate::medium::MediumInterface::default()) {
+        scene.material_media = material_media;
+    }
+    scene.media = media.media;
+    scene.camera_medium = camera_medium;
     if let Some(r) = d.render {
         if r.spp == Some(0) {
             return Err(invalid(path, "render: spp must be at least 1"));

@@ -209,6 +209,7 @@ impl Translator<'_, '_> {
             crop: None,
             mirror,
             filter: None,
+            medium: None,
         };
         Ok(())
     }

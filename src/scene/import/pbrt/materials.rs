@@ -323,11 +323,7 @@ impl Parser<'_> {
                     params.get(ignored);
                 }
             }
-            "interface" => {
-                self.unsupported(at, "an interface material (media boundary): a glass of index 1.0001 used".into())?;
-                m.kind = MaterialKind::ThinDielectric;
-                m.ior = Some(1.0001);
-            }
+            "interface" => m.kind = MaterialKind::Interface,
             other => {
                 self.unsupported(at, format!("Material \"{other}\" is not supported: grey diffuse (0.5) used"))?;
                 for p in &params.list {

@@ -23,6 +23,7 @@ use tokens::{Cursor, Params, Token, describe, tokenize};
 
 mod lights;
 mod materials;
+mod media;
 mod options;
 mod shapes;
 mod state;
@@ -69,6 +70,12 @@ struct Parser<'o> {
     /// were warned about.
     curves: Vec<(String, crate::scene::mesh::curves::CurveMesh, String)>,
     warned_flat_curves: bool,
+    /// Media by pbrt name: the description's name, or `None` where vacuum stands in.
+    media: HashMap<String, Option<String>>,
+    /// The medium the camera was declared in (the outside of the `MediumInterface` then).
+    camera_medium: Option<String>,
+    /// (material, inside, outside) → the material made for shapes between those media.
+    bounding: HashMap<(String, [Option<String>; 2]), String>,
 }
 
 /// Reads the pbrt-v4 scene at `path` (text `text`).
@@ -83,7 +90,13 @@ pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result
         folder,
         warnings: Vec::new(),
         includes: Includes::new(path),
-        state: State { ctm: DMat4::IDENTITY, reverse: false, material: "default".into(), area_light: None },
+        state: State {
+            ctm: DMat4::IDENTITY,
+            reverse: false,
+            material: "default".into(),
+            area_light: None,
+            media: [None, None],
+        },
         stack: Vec::new(),
         named_frames: HashMap::new(),
         named_materials: HashMap::new(),
@@ -100,6 +113,9 @@ pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result
         filter: PixelFilterDescription { kind: PixelFilterKind::Gaussian, stddev: Some(0.5), radius: Some([1.5; 2]) },
         curves: Vec::new(),
         warned_flat_curves: false,
+        media: HashMap::new(),
+        camera_medium: None,
+        bounding: HashMap::new(),
     };
     p.file(path, text)?;
     p.finish()?;
@@ -150,6 +166,7 @@ impl Parser<'_> {
             || self.light_directive(d, c, at)?
             || self.shape_directive(d, c, at)?
             || self.object_directive(d, c, at)?
+            || self.medium_directive(d, c, at)?
             || self.unsupported_directive(d, c, at)?;
         if known { Ok(()) } else { Err(syntax(at, format!("unknown directive {d}"))) }
     }
@@ -169,21 +186,9 @@ impl Parser<'_> {
         Ok(true)
     }
 
-    /// Media and default attributes: warned about and skipped.
+    /// Default attributes: warned about and skipped.
     fn unsupported_directive(&mut self, d: &str, c: &mut Cursor, at: &At) -> Result<bool> {
         match d {
-            "MakeNamedMedium" => {
-                let name = c.text(d)?;
-                let _ = c.params()?;
-                self.unsupported(at, format!("{d} \"{name}\" is not supported: ignored"))?;
-            }
-            "MediumInterface" => {
-                let _ = c.text(d)?;
-                if let Some(Token::Text(_)) = c.peek() {
-                    let _ = c.text(d)?;
-                }
-                self.unsupported(at, "MediumInterface: media are not supported: ignored".into())?;
-            }
             "Attribute" => {
                 let _ = c.text(d)?;
                 let _ = c.params()?;
@@ -574,5 +579,38 @@ mod tests {
             let uv = f(d);
             assert!((0.0..=1.0).contains(&uv.x) && (0.0..=1.0).contains(&uv.y));
         }
+    }
+
+    /// Media: a homogeneous medium's coefficients (times `scale`), the camera in the outside
+    /// medium of the `MediumInterface` in force, shapes between different media given a
+    /// material that names them, `interface` surfaces, and media we do not render (a grid)
+    /// warned about and left as vacuum.
+    #[test]
+    fn media_and_their_boundaries() {
+        let text = "MakeNamedMedium \"fog\" \"string type\" \"homogeneous\" \"rgb sigma_a\" [0.1 0.2 0.3] \
+                    \"rgb sigma_s\" [1 2 3] \"float scale\" 2 \"float g\" 0.5\n\
+                    MediumInterface \"\" \"fog\"\nCamera \"perspective\"\nWorldBegin\n\
+                    AttributeBegin MediumInterface \"fog\" \"\" Material \"interface\"\n\
+                    Shape \"sphere\" \"float radius\" 1 AttributeEnd\n\
+                    Shape \"sphere\" \"float radius\" 3\n";
+        let d = ok(text);
+        let fog = &d.media["medium:fog"];
+        assert_eq!(
+            (fog.sigma_a, fog.sigma_s, fog.scale, fog.g),
+            ([0.1, 0.2, 0.3], [1.0, 2.0, 3.0], Some(2.0), Some(0.5))
+        );
+        assert_eq!(d.camera.medium.as_deref(), Some("medium:fog"));
+        let bounding: Vec<_> = d.materials.values().filter(|m| m.interior_medium.is_some()).collect();
+        assert_eq!(bounding.len(), 1);
+        assert_eq!((bounding[0].kind, bounding[0].exterior_medium.as_deref()), (MaterialKind::Interface, None));
+        // The outer sphere, after the block: the interface set before the camera holds again.
+        let outer: Vec<_> = d.materials.values().filter(|m| m.exterior_medium.is_some()).collect();
+        assert_eq!((outer.len(), outer[0].kind, outer[0].interior_medium.as_deref()), (1, MaterialKind::Diffuse, None));
+        let grid = "MakeNamedMedium \"smoke\" \"string type\" \"uniformgrid\" \"float density\" [1]\n\
+                    WorldBegin MediumInterface \"smoke\" \"\" Shape \"sphere\"\n";
+        let r = read(grid, false).unwrap();
+        assert!(r.description.media.is_empty());
+        assert!(r.warnings.iter().any(|w| w.contains("uniformgrid") && w.contains("vacuum")), "{:?}", r.warnings);
+        assert!(message(read(grid, true)).contains("uniformgrid"));
     }
 }

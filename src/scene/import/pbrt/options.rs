@@ -129,6 +129,7 @@ impl Parser<'_> {
         self.check_unused("Camera", params, at)?;
         self.named_frames.insert("camera".into(), self.state.ctm);
         self.camera = Some((self.state.ctm, fov, at.clone()));
+        self.camera_medium = self.state.media[1].clone();
         Ok(())
     }
 
@@ -180,6 +181,7 @@ impl Parser<'_> {
             crop: None,
             mirror,
             filter: Some(self.filter),
+            medium: self.camera_medium.clone(),
         };
         if let Some([x0, x1, y0, y1]) = crop {
             // pbrt: pixels ceil(res·min) up to ceil(res·max).

@@ -59,8 +59,27 @@ impl Parser<'_> {
     }
 
     /// The material a shape declared now gets: the current one, made emitting by the area
-    /// light in force.
+    /// light in force, bounding the media of the `MediumInterface` in force when they differ.
     pub(super) fn shape_material(&mut self) -> Result<String> {
+        let material = self.emitting_material()?;
+        let media = self.state.media.clone();
+        if media[0] == media[1] {
+            return Ok(material);
+        }
+        let key = (material, media);
+        if let Some(name) = self.bounding.get(&key) {
+            return Ok(name.clone());
+        }
+        let mut m = self.out.materials.get(&key.0).cloned().unwrap_or_default();
+        [m.interior_medium, m.exterior_medium] = key.1.clone();
+        let name = self.fresh("bounding");
+        self.out.materials.insert(name.clone(), m);
+        self.bounding.insert(key, name.clone());
+        Ok(name)
+    }
+
+    /// The current material, made emitting by the area light in force.
+    fn emitting_material(&mut self) -> Result<String> {
         let base = self.state.material.clone();
         let Some(light) = self.state.area_light.clone() else { return Ok(base) };
         if self.defining.is_some() {

@@ -25,6 +25,9 @@ pub(super) struct State {
     /// The current material's name among the description's materials.
     pub(super) material: String,
     pub(super) area_light: Option<AreaLight>,
+    /// The media inside and outside the shapes that follow (`MediumInterface`), as the
+    /// description's names (`None`: vacuum).
+    pub(super) media: [Option<String>; 2],
 }
 
 /// pbrt's `LookAt`: camera space's +z towards the target, +y up, +x to `up × dir` (pbrt's

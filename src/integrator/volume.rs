@@ -1,0 +1,296 @@
+//! `path` through participating media (pbrt-v4's `volpath`, Mitsuba 3's `volpath`, for
+//! homogeneous media): the ray's medium is tracked across the surfaces that bound media;
+//! free flights are sampled per channel with one-sample MIS over the channels
+//! ([`crate::medium::Medium::sample_flight`]); at a point in a medium the path scatters by the
+//! phase function, with next event estimation there as on surfaces. Shadow rays cross medium
+//! boundaries and carry the transmittance of every medium they pass through. A boundary
+//! without a surface ([`crate::material::Bsdf::interface`]) is crossed without a bounce: it
+//! neither counts against the path's depth nor changes its weight.
+//!
+//! Emission found by BSDF or phase sampling is weighed against NEE with the power heuristic
+//! on the two directions' solid-angle densities, as in [`super::path`]: any pair of weights
+//! that sums to one keeps each path counted once, and the transmittance both strategies
+//! share needs no place in them.
+use super::{MisAt, RenderContext, Scratch, nee_strategy, path::Mis, power_heuristic, sample_bsdf};
+use crate::accel::Accel;
+use crate::geometry::{Frame, Ray, UVec2, Vec3A, offset_ray_origin};
+use crate::light::{LightSampling, Receiver};
+use crate::sampler::{SampleStream, survival_probability};
+use crate::scene::{Scene, SurfaceInteraction};
+
+/// Most medium boundaries one ray segment crosses without scattering (a guard against
+/// surfaces stacked on each other; far above any scene's nesting).
+const MAX_CROSSINGS: u32 = 256;
+
+/// The vertex the current direction was sampled at, for weighing the emission it finds.
+#[derive(Clone, Copy)]
+struct Previous {
+    /// The vertex, as NEE saw it there.
+    at: Receiver,
+    /// The direction's solid-angle density.
+    pdf: f32,
+    /// Which emission NEE there weighed against this direction.
+    mis: MisAt,
+}
+
+/// One sample of `pixel` by volumetric path tracing (see the module's text).
+#[inline(never)]
+pub(crate) fn trace_volume_path<A: Accel>(
+    ctx: &RenderContext<A>,
+    pixel: UVec2,
+    rng: &mut SampleStream,
+    scratch: &mut Scratch,
+    rr_depth: u32,
+    mis: Mis,
+) -> Vec3A {
+    let scene = ctx.scene;
+    let film = scene.camera.film_point(pixel, rng.pixel_2d());
+    let mut ray = scene.camera.ray(film);
+    if ctx.max_depth == 0 {
+        return Vec3A::ZERO;
+    }
+    let mut medium = scene.camera_medium;
+    let (mut radiance, mut throughput) = (Vec3A::ZERO, Vec3A::ONE);
+    // `None`: the camera, or a delta lobe: emission found next is counted whole.
+    let mut previous: Option<Previous> = None;
+    // Vertices that scattered so far; light reaching vertex `bounce` ends a path of
+    // `bounce + 2` segments.
+    let mut bounce = 0u32;
+    let last_bounce = ctx.max_depth.saturating_sub(2);
+    let mut crossings = 0;
+    loop {
+        scratch.rays += 1;
+        let hit = ctx.accel.intersect(&ray);
+        if let Some(m) = medium.map(|i| &scene.media[usize::from(i)]) {
+            let flight = m.sample_flight(hit.map_or(f32::INFINITY, |h| h.t), rng.next_f32(), rng.next_f32());
+            throughput *= flight.weight;
+            if throughput == Vec3A::ZERO {
+                break;
+            }
+            if flight.scattered {
+                if ctx.max_depth < 2 || bounce > last_bounce {
+                    break;
+                }
+                let x = ray.origin + ray.dir * flight.t;
+                let wi = -ray.dir;
+                let weigh = if mis == Mis::Off { MisAt::NONE } else { MisAt { surfaces: true, environment: true } };
+                let at = Receiver { x, n: Vec3A::ZERO, strategy: LightSampling::Area };
+                radiance += throughput
+                    * next_event(ctx, &at, x, medium, weigh, rng, scratch, |dir| {
+                        let p = m.phase(wi, dir);
+                        (Vec3A::splat(p), p)
+                    });
+                if bounce >= rr_depth {
+                    let albedo = m.sigma_s / m.sigma_t().max(Vec3A::splat(f32::MIN_POSITIVE));
+                    let q = survival_probability(albedo);
+                    if rng.next_f32() >= q {
+                        break;
+                    }
+                    throughput /= q;
+                }
+                let (dir, pdf) = m.sample_phase(wi, rng.next_2d());
+                previous = Some(Previous { at, pdf, mis: weigh });
+                ray = Ray::new(x, dir);
+                bounce += 1;
+                crossings = 0;
+                continue;
+            }
+        }
+        let Some(hit) = hit else {
+            let env = scene.lights.environment(ray.dir);
+            match previous {
+                None => radiance += throughput * env,
+                Some(p) if p.mis.environment && env != Vec3A::ZERO => {
+                    radiance += throughput * env * power_heuristic(p.pdf, scene.lights.environment_pdf(ray.dir));
+                }
+                Some(_) => {}
+            }
+            break;
+        };
+        let si = scene.interaction(&ray, &hit);
+        if si.material.bsdf.is_interface() {
+            crossings += 1;
+            if crossings > MAX_CROSSINGS {
+                break;
+            }
+            medium = scene.medium_interface(si.prim).after(si.ng, ray.dir, medium);
+            ray = si.spawn_ray(ray.dir);
+            continue;
+        }
+        crossings = 0;
+        let emitted = si.emitted();
+        if emitted != Vec3A::ZERO {
+            match previous {
+                None => radiance += throughput * emitted,
+                Some(p) if p.mis.surfaces => {
+                    let p_light = scene.lights.triangle_pdf(&p.at, si.prim, si.p);
+                    radiance += throughput * emitted * power_heuristic(p.pdf, p_light);
+                }
+                Some(_) => {}
+            }
+        }
+        let albedo = si.material.albedo();
+        if albedo == Vec3A::ZERO || ctx.max_depth < 2 || bounce > last_bounce {
+            break;
+        }
+        let frame = si.bsdf_frame();
+        let wi = frame.to_local(si.wo);
+        let weigh = mis.at(&si.material);
+        let at = Receiver { x: si.p, n: si.n, strategy: nee_strategy(ctx.light_sampling, &si) };
+        if !si.material.bsdf.is_delta() {
+            let interface = scene.medium_interface(si.prim);
+            radiance += throughput * surface_light(ctx, &si, &frame, wi, &at, weigh, medium, interface, rng, scratch);
+        }
+        if bounce >= rr_depth {
+            let q = survival_probability(albedo);
+            if rng.next_f32() >= q {
+                break;
+            }
+            throughput /= q;
+        }
+        let Some(s) = sample_bsdf(&si, &frame, wi, rng) else {
+            break;
+        };
+        throughput *= s.weight;
+        previous = (!s.delta).then_some(Previous { at, pdf: s.pdf, mis: weigh });
+        medium = scene.medium_interface(si.prim).after(si.ng, s.dir, medium);
+        ray = si.spawn_ray(s.dir);
+        bounce += 1;
+    }
+    radiance
+}
+
+/// NEE at surface vertex `si` (BSDF in `frame`, `wi` the local direction to the viewer),
+/// which the arriving ray reached in `medium`.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn surface_light<A: Accel>(
+    ctx: &RenderContext<A>,
+    si: &SurfaceInteraction,
+    frame: &Frame,
+    wi: Vec3A,
+    at: &Receiver,
+    mis: MisAt,
+    medium: Option<u16>,
+    interface: crate::medium::MediumInterface,
+    rng: &mut SampleStream,
+    scratch: &mut Scratch,
+) -> Vec3A {
+    let bsdf = &si.material.bsdf;
+    let origin_of = |dir: Vec3A| offset_ray_origin(si.p, si.p_err, si.ng, dir);
+    let light = draw_light(ctx, at, rng);
+    let Some(light) = light else { return Vec3A::ZERO };
+    let dir = if light.infinite { light.p } else { (light.p - si.p).normalize_or_zero() };
+    // Opaque surfaces reflect only on the side they are seen from.
+    if !bsdf.transmits() && si.n.dot(dir) <= 0.0 {
+        return Vec3A::ZERO;
+    }
+    let local = frame.to_local(dir);
+    if !si.consistent(dir, local.z) {
+        return Vec3A::ZERO;
+    }
+    let f = bsdf.eval(wi, local) * local.z.abs();
+    if f == Vec3A::ZERO {
+        return Vec3A::ZERO;
+    }
+    let start = interface.after(si.ng, dir, medium);
+    let tr = transmittance(ctx.scene, ctx.accel, origin_of(dir), &light, start, scratch);
+    finish(f, tr, &light, mis, || bsdf.pdf(wi, local))
+}
+
+/// A light sample for NEE at `at` (three dimensions of the stream, always).
+#[inline]
+fn draw_light<A: Accel>(
+    ctx: &RenderContext<A>,
+    at: &Receiver,
+    rng: &mut SampleStream,
+) -> Option<crate::light::LightSample> {
+    let u_pick = rng.next_f32();
+    let u_point = rng.next_2d();
+    ctx.scene.lights.sample(at, u_pick, u_point)
+}
+
+/// NEE at point `x` inside a medium: `eval(dir)` gives the phase function's value (per
+/// channel) and its sampling density for the direction to the light.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn next_event<A: Accel>(
+    ctx: &RenderContext<A>,
+    at: &Receiver,
+    x: Vec3A,
+    medium: Option<u16>,
+    mis: MisAt,
+    rng: &mut SampleStream,
+    scratch: &mut Scratch,
+    eval: impl FnOnce(Vec3A) -> (Vec3A, f32),
+) -> Vec3A {
+    let Some(light) = draw_light(ctx, at, rng) else { return Vec3A::ZERO };
+    let dir = if light.infinite { light.p } else { (light.p - x).normalize_or_zero() };
+    if dir == Vec3A::ZERO {
+        return Vec3A::ZERO;
+    }
+    let (f, pdf) = eval(dir);
+    let tr = transmittance(ctx.scene, ctx.accel, x, &light, medium, scratch);
+    finish(f, tr, &light, mis, || pdf)
+}
+
+/// `f · T · Le / p_light`, weighed against the direction sampler of density `dir_pdf` where
+/// `mis` says so (never for delta lights).
+#[inline]
+fn finish(f: Vec3A, tr: Vec3A, light: &crate::light::LightSample, mis: MisAt, dir_pdf: impl FnOnce() -> f32) -> Vec3A {
+    if tr == Vec3A::ZERO {
+        return Vec3A::ZERO;
+    }
+    let value = f * tr * light.emission * light.inv_pdf;
+    let weigh = !light.delta && if light.infinite { mis.environment } else { mis.surfaces };
+    if weigh { value * power_heuristic(1.0 / light.inv_pdf, dir_pdf()) } else { value }
+}
+
+/// The transmittance from `origin` (in `medium`) to the light sample: zero if a surface is
+/// in the way, else the product of every crossed medium's transmittance over its stretch.
+fn transmittance<A: Accel>(
+    scene: &Scene,
+    accel: &A,
+    mut origin: Vec3A,
+    light: &crate::light::LightSample,
+    mut medium: Option<u16>,
+    scratch: &mut Scratch,
+) -> Vec3A {
+    let (dir, mut remaining) = if light.infinite {
+        // Nothing lies beyond the scene's bounding sphere.
+        let (centre, radius) = scene.bounds;
+        (light.p, 2.0 * ((origin - centre).length() + radius))
+    } else {
+        let target = offset_ray_origin(light.p, light.p_err, light.ng, (origin - light.p).normalize_or_zero());
+        let span = target - origin;
+        let len = span.length();
+        if len <= 0.0 {
+            return Vec3A::ZERO;
+        }
+        (span / len, len * (1.0 - 1e-4))
+    };
+    let mut tr = Vec3A::ONE;
+    let along = |m: Option<u16>, d: f32| m.map_or(Vec3A::ONE, |i| scene.media[usize::from(i)].transmittance(d));
+    for _ in 0..MAX_CROSSINGS {
+        scratch.rays += 1;
+        let ray = Ray::new(origin, dir);
+        let Some(hit) = accel.intersect(&ray).filter(|h| h.t < remaining) else {
+            // Towards the environment, the medium reaches to infinity (where it is not
+            // vacuum, nothing arrives).
+            let d = if light.infinite { f32::INFINITY } else { remaining };
+            return tr * along(medium, d);
+        };
+        let si = scene.interaction(&ray, &hit);
+        if !si.material.bsdf.is_interface() {
+            return Vec3A::ZERO;
+        }
+        tr *= along(medium, hit.t);
+        if tr == Vec3A::ZERO {
+            return tr;
+        }
+        medium = scene.medium_interface(si.prim).after(si.ng, dir, medium);
+        origin = offset_ray_origin(si.p, si.p_err, si.ng, dir);
+        remaining -= hit.t;
+    }
+    Vec3A::ZERO
+}

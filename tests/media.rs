@@ -1,0 +1,122 @@
+//! Participating media (`path` through homogeneous media, `src/integrator/volume.rs`) against
+//! analytic answers. Each image mean must match per channel within 4 standard errors (from
+//! the render's own per-pixel variances; a correct estimator fails one such check with
+//! probability ~6e-5, and the seeds are fixed).
+//!
+//! - A scattering furnace: a closed box emitting 1 inward, filled with a medium that only
+//!   scatters (albedo 1, coefficients different per channel): every path ends on the wall, so
+//!   the radiance is 1 everywhere. Exercises free flights (the channels' one-sample MIS), phase
+//!   sampling, NEE with transmittance and the MIS between them.
+//! - The same box with walls of reflectance ½: `Le / (1 − ρ) = 2`.
+//! - An absorbing slab between surfaces that bound it: radiance `exp(−σa·d)` per channel
+//!   behind it (a narrow view, so every ray crosses the same thickness): the boundaries'
+//!   medium tracking and their crossing without a bounce.
+mod common;
+use common::*;
+use zvidpt::accel::BackendKind;
+use zvidpt::film::Image;
+use zvidpt::integrator::{IntegratorSettings, LearnedSettings, Mis, PathTracer};
+use zvidpt::render::{MEDIA_NOTE, RenderSettings, render_scene};
+use zvidpt::scene::Scene;
+
+const Z_BOUND: f64 = 4.0;
+
+fn parse(text: &str) -> Scene {
+    Scene::parse(text, std::path::Path::new("media.toml")).unwrap()
+}
+
+/// Per channel: the image mean and its standard error from the per-pixel variances.
+fn channel_means(img: &Image) -> [(f64, f64); 3] {
+    let v = img.variance.as_ref().unwrap();
+    let n = img.pixels.len() as f64;
+    std::array::from_fn(|c| {
+        let mean = img.pixels.iter().map(|p| f64::from(p[c])).sum::<f64>() / n;
+        let var = v.iter().map(|p| f64::from(p[c]) / f64::from(img.spp)).sum::<f64>() / (n * n);
+        (mean, var.sqrt())
+    })
+}
+
+fn assert_means(img: &Image, expected: [f64; 3], what: &str) {
+    for (c, (mean, se)) in channel_means(img).into_iter().enumerate() {
+        let z = (mean - expected[c]) / se;
+        eprintln!("{what}, channel {c}: mean {mean:.5} (expected {:.5}), s.e. {se:.2e}, z {z:.2}", expected[c]);
+        assert!(z.abs() < Z_BOUND, "{what}, channel {c}: mean {mean}, expected {}, z {z}", expected[c]);
+    }
+}
+
+fn furnace(reflectance: f32, emission: f32) -> String {
+    format!(
+        "[camera]\neye = [0.1, -0.2, 0.3]\nlook_at = [0.0, 0.0, -1.0]\nfov_y = 70.0\nwidth = 16\nheight = 16\n\
+         medium = \"fog\"\n\
+         [media.fog]\nsigma_s = [0.25, 0.5, 1.0]\nscale = 2.0\ng = 0.4\n\
+         [materials.wall]\ndiffuse = [{reflectance}, {reflectance}, {reflectance}]\n\
+         emission = [{emission}, {emission}, {emission}]\ntwo_sided_emission = true\n\
+         [[shape]]\ntype = \"cube\"\nmaterial = \"wall\"\n"
+    )
+}
+
+#[test]
+fn a_scattering_furnace_is_one() {
+    let scene = furnace(0.0, 1.0);
+    let scene = parse(&scene);
+    for (mis, seed) in [(Mis::Glossy, 1), (Mis::All, 2)] {
+        let img = render_bvh(&scene, &mut PathTracer { mis, ..PathTracer::default() }, 128, seed);
+        assert_means(&img, [1.0; 3], &format!("scattering furnace, MIS {mis:?}"));
+    }
+}
+
+#[test]
+fn a_reflecting_furnace_is_le_over_one_minus_rho() {
+    let scene = parse(&furnace(0.5, 1.0));
+    let img = render_bvh(&scene, &mut PathTracer::default(), 128, 3);
+    assert_means(&img, [2.0; 3], "reflecting furnace");
+}
+
+/// The tolerance sees a 2% bias in the furnace.
+#[test]
+fn the_furnace_test_detects_a_two_percent_bias() {
+    let scene = parse(&furnace(0.0, 1.0));
+    let img = render_bvh(&scene, &mut Scaled(PathTracer::default(), 0.98), 128, 1);
+    let worst = channel_means(&img).iter().map(|(m, se)| ((m - 1.0) / se).abs()).fold(0.0, f64::max);
+    assert!(worst >= Z_BOUND, "a 2% bias went unnoticed (largest |z| {worst})");
+}
+
+/// A slab of ink (`interface` surfaces around it, so crossing them is no bounce), a wall
+/// emitting 1 behind it, vacuum elsewhere.
+fn slab() -> String {
+    "[camera]\neye = [0.0, 0.0, 10.0]\nlook_at = [0.0, 0.0, 0.0]\nfov_y = 1.0\nwidth = 8\nheight = 8\n\
+     [media.ink]\nsigma_a = [0.2, 1.0, 2.5]\n\
+     [materials.boundary]\ntype = \"interface\"\ninterior_medium = \"ink\"\n\
+     [materials.light]\ndiffuse = [0.0, 0.0, 0.0]\nemission = [1.0, 1.0, 1.0]\n\
+     [[shape]]\ntype = \"cube\"\nmaterial = \"boundary\"\nscale = [3.0, 3.0, 0.5]\n\
+     [[shape]]\ntype = \"rectangle\"\nmaterial = \"light\"\nscale = [5.0, 5.0, 1.0]\ntranslate = [0.0, 0.0, -3.0]\n"
+        .into()
+}
+
+#[test]
+fn an_absorbing_slab_transmits_exp_minus_sigma_d() {
+    let scene = parse(&slab());
+    assert!(scene.volumetric());
+    let img = render_bvh(&scene, &mut PathTracer::default(), 256, 4);
+    // Thickness 1 (the cube's z from −0.5 to 0.5); the view's half-angle of 0.5° changes
+    // the path length by at most 4e-5.
+    let expected = [0.2f64, 1.0, 2.5].map(|s| (-s).exp());
+    assert_means(&img, expected, "absorbing slab");
+}
+
+/// The learned walk hands scenes with media to `path` (and says so); the photon-map
+/// integrators refuse them with one clear error.
+#[test]
+fn only_path_renders_media() {
+    let scene = parse(&furnace(0.0, 1.0));
+    let settings = RenderSettings { spp: Some(4), seed: 1, threads: Some(2), ..RenderSettings::default() };
+    let learned = IntegratorSettings::Learned(LearnedSettings::default());
+    let (img, stats, _) = render_scene(&scene, &learned, BackendKind::Bvh, &settings).unwrap();
+    assert_eq!(stats.prepass.as_deref(), Some(MEDIA_NOTE));
+    let (path, _, _) =
+        render_scene(&scene, &IntegratorSettings::Path { mis: Mis::Glossy }, BackendKind::Bvh, &settings).unwrap();
+    assert_eq!(img.pixels, path.pixels, "rendered by path, sample for sample");
+    let jensen = IntegratorSettings::Jensen(Default::default());
+    let err = render_scene(&scene, &jensen, BackendKind::Bvh, &settings).unwrap_err().to_string();
+    assert!(err.contains("participating media"), "{err}");
+}
