@@ -177,6 +177,12 @@ impl Translator<'_, '_> {
                     format!("<bsdf type=\"principled\"> is approximated by {model} (α = roughness²)"),
                 )?;
             }
+            // A medium's boundary, no surface.
+            "null" => {
+                self.check_params(b, &[])?;
+                m.kind = MaterialKind::Interface;
+                m.two_sided = None;
+            }
             "diffuse" => {
                 self.check_params(b, &["reflectance"])?;
                 let (c, t) = self.colour(b, "reflectance", [0.5; 3])?;

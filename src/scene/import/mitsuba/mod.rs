@@ -10,12 +10,13 @@
 //!    `textures.rs`, `shapes.rs` (meshes and shapes with one material each, shapegroups and
 //!    instances; an area emitter makes the shape's material emit), `emitters.rs` (other
 //!    emitters to lights), `sensor.rs` (sensor, film, sampler and integrator to the camera and
-//!    render defaults).
+//!    render defaults), `media.rs` (homogeneous media, a shape's `interior` and `exterior`).
 //!
 //! What lies outside the subset gives one warning naming the element, its file and line, and
 //! what is used instead (`strict`: an error).
 mod bsdfs;
 mod emitters;
+mod media;
 mod reader;
 mod sensor;
 mod shapes;
@@ -123,6 +124,7 @@ pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result
         groups: HashMap::new(),
         in_group: false,
         budget: MAX_INSTANCED_TRIANGLES,
+        media: HashMap::new(),
     };
     t.translate(&root)?;
     let description = t.out;
@@ -144,6 +146,8 @@ struct Translator<'r, 'o> {
     groups: HashMap<String, Prototype>,
     in_group: bool,
     budget: usize,
+    /// Media translated so far, by id (`None`: vacuum stands in).
+    media: HashMap<String, Option<String>>,
 }
 
 /// A BSDF as a material, before a shape's emitter is added.

@@ -47,7 +47,12 @@ impl Translator<'_, '_> {
         let to_world = self.transform(s, "to_world")?;
         let (mut width, mut height, mut crop) = (768i64, 576i64, None);
         let mut filter = MITSUBA_FILTER;
+        let mut medium = None;
         for child in &s.children {
+            if let Some(m) = self.child_medium(child)? {
+                medium = m;
+                continue;
+            }
             let Child::Obj(o) = child else { continue };
             match o.tag.as_str() {
                 "film" => {
@@ -130,6 +135,7 @@ impl Translator<'_, '_> {
         self.camera(to_world, fov, &axis, width as u32, height as u32, &s.at)?;
         self.out.camera.crop = crop;
         self.out.camera.filter = Some(filter);
+        self.out.camera.medium = medium;
         Ok(())
     }
 

@@ -117,13 +117,26 @@ impl Translator<'_, '_> {
         if let Some(e) = emission {
             material.emission = e;
         }
+        material.interior_medium = self.medium_param(s, "interior")?;
+        material.exterior_medium = self.medium_param(s, "exterior")?;
         let name = self.fresh("material");
         let to_world = self.transform(s, "to_world")?;
         let flip = self.boolean(s, "flip_normals", false)?;
         let matrix = to_rows(to_world);
         match s.plugin.as_str() {
             "obj" | "ply" => {
-                self.check_params(s, &["filename", "to_world", "flip_normals", "face_normals", "flip_tex_coords"])?;
+                self.check_params(
+                    s,
+                    &[
+                        "filename",
+                        "to_world",
+                        "flip_normals",
+                        "face_normals",
+                        "flip_tex_coords",
+                        "interior",
+                        "exterior",
+                    ],
+                )?;
                 let file = self.text(s, "filename")?.ok_or_else(|| syntax(&s.at, "a mesh shape needs `filename`"))?;
                 // Mitsuba gives a mesh without normals smooth ones, unless `face_normals`
                 // (which also drops the file's).
@@ -152,14 +165,14 @@ impl Translator<'_, '_> {
                 };
                 let (mut center, mut radius) = (None, None);
                 if kind == ShapeKind::Sphere {
-                    self.check_params(s, &["to_world", "flip_normals", "center", "radius"])?;
+                    self.check_params(s, &["to_world", "flip_normals", "center", "radius", "interior", "exterior"])?;
                     if let Some((_, v, at)) = s.param("center") {
                         let Value::Vector(c) = v else { return Err(syntax(at, "`center` must be a <point>")) };
                         center = Some(c.as_vec3().to_array());
                     }
                     radius = Some(self.float(s, "radius", 1.0)? as f32);
                 } else {
-                    self.check_params(s, &["to_world", "flip_normals"])?;
+                    self.check_params(s, &["to_world", "flip_normals", "interior", "exterior"])?;
                 }
                 self.out.shapes.push(ShapeDescription {
                     kind,

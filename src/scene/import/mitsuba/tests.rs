@@ -386,3 +386,28 @@ fn emitters_and_render_settings() {
     let r = d.render.unwrap();
     assert_eq!((r.spp, r.max_depth), (Some(9), Some(4)));
 }
+
+/// Media: a nested medium in the sensor, a shared one by reference (translated once), the
+/// `null` boundary; a heterogeneous medium is warned about and leaves vacuum.
+#[test]
+fn media_nest_and_are_shared() {
+    let body = "<medium type=\"homogeneous\" id=\"m\"><float name=\"sigma_t\" value=\"2\"/></medium>
+        <sensor type=\"perspective\"><medium type=\"homogeneous\"><rgb name=\"albedo\" value=\"0.5, 0.5, 0.5\"/></medium></sensor>
+        <shape type=\"sphere\"><bsdf type=\"null\"/><ref name=\"interior\" id=\"m\"/></shape>
+        <shape type=\"cube\"><ref name=\"exterior\" id=\"m\"/></shape>";
+    let d = ok(body);
+    assert_eq!(d.media.len(), 2, "the shared medium once, the sensor's own");
+    let shared = d.materials.values().filter_map(|m| m.interior_medium.clone().or(m.exterior_medium.clone()));
+    let names: std::collections::BTreeSet<String> = shared.collect();
+    assert_eq!(names.len(), 1);
+    let m = &d.media[names.first().unwrap()];
+    // Mitsuba's default albedo 0.75: σs = 0.75·σt, σa = 0.25·σt.
+    assert_eq!((m.sigma_s, m.sigma_a), ([1.5; 3], [0.5; 3]));
+    let camera = d.camera.medium.as_ref().expect("the sensor's medium");
+    assert_eq!((d.media[camera].sigma_s, d.media[camera].sigma_a), ([0.5; 3], [0.5; 3]));
+    assert!(d.materials.values().any(|m| m.kind == MaterialKind::Interface));
+    let grid = "<shape type=\"cube\"><medium type=\"heterogeneous\" name=\"interior\"/></shape>";
+    let r = read(grid, &[], false).unwrap();
+    assert!(r.description.media.is_empty() && r.description.materials.values().all(|m| m.interior_medium.is_none()));
+    assert!(r.warnings.iter().any(|w| w.contains("heterogeneous")), "{:?}", r.warnings);
+}

@@ -89,7 +89,7 @@ impl Translator<'_, '_> {
                 }
                 "integrator" => self.integrator(obj)?,
                 // Defined for `<ref>`s.
-                "bsdf" | "texture" => {}
+                "bsdf" | "texture" | "medium" | "phase" => {}
                 other => {
                     let message = format!("<{other} type=\"{}\"> is not supported: ignored", obj.plugin);
                     self.unsupported(&obj.at, message)?;
