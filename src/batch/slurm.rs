@@ -83,9 +83,29 @@ fn part_path(job: &Job, i: u32) -> PathBuf {
     folder(job).join(format!("part-{i}.zvp"))
 }
 
-/// A word for `sh`, single-quoted.
+/// A word for `sh`, single-quoted (newlines and every other byte but NUL stand for
+/// themselves inside single quotes; NUL is refused before any script is written).
 fn quote(s: &str) -> String {
     format!("'{}'", s.replace('\'', "'\\''"))
+}
+
+/// Text for a comment line of a script: control characters (a newline would end the comment
+/// and start a command) written as escapes.
+fn comment(s: &str) -> String {
+    s.chars().flat_map(|c| if c.is_control() { c.escape_default().collect::<Vec<_>>() } else { vec![c] }).collect()
+}
+
+/// Refuses a job whose words cannot stand in a shell script: a NUL byte has no quoting.
+fn check_scriptable(job: &Job, options: &SlurmOptions) -> Result<()> {
+    let words = job.args.iter().map(String::as_str).chain([job.origin.as_str()]);
+    let paths = [&job.output, &options.exe, &options.workdir].map(|p| p.to_string_lossy().into_owned());
+    if words.chain(paths.iter().map(String::as_str)).any(|w| w.contains('\0')) {
+        return Err(Error::InvalidOption(format!(
+            "{}: a NUL byte in the job cannot be written into a Slurm script",
+            comment(&job.origin)
+        )));
+    }
+    Ok(())
 }
 
 /// The job's render arguments without the output and the PNG options (a part writes none;
@@ -111,7 +131,11 @@ fn part_args(job: &Job) -> Vec<String> {
 pub fn scripts(job: &Job, split: &Split, options: &SlurmOptions) -> (String, Option<String>) {
     let exe = quote(&options.exe.display().to_string());
     let threads = options.cpus_per_task.to_string();
-    let head = format!("#!/bin/sh\n# zvidpt batch --slurm: {} -> {}\nset -eu\n", job.origin, job.output.display());
+    let head = format!(
+        "#!/bin/sh\n# zvidpt batch --slurm: {} -> {}\nset -eu\n",
+        comment(&job.origin),
+        comment(&job.output.display().to_string())
+    );
     match split {
         Split::Whole => {
             let mut words: Vec<String> = vec![exe, "render".into()];
@@ -230,6 +254,7 @@ fn record(job: &Job) -> Record {
 /// Submits `job`, unless an earlier submission of it is still queued (then `Ok(None)`).
 pub fn submit(job: &Job, options: &SlurmOptions) -> Result<Option<Submitted>> {
     let split = split_of(job, options.tasks)?;
+    check_scriptable(job, options)?;
     if !queued_jobs(job).is_empty() {
         return Ok(None);
     }
@@ -403,6 +428,48 @@ mod tests {
         assert_eq!(split_of(&job(&["--aov", "variance"]), 4).unwrap(), Split::Samples { spp: 64, tasks: 4 });
         assert_eq!(split_of(&job(&["--spp", "2"]), 4).unwrap(), Split::Samples { spp: 2, tasks: 2 });
         assert!(split_of(&job(&["--samples", "0..4"]), 4).is_err());
+    }
+
+    /// Every field of a job reaches the scripts as data: a newline in the job's origin or
+    /// output (both also in the comment line) starts no command, and the render still gets
+    /// the output's name intact; a NUL byte is refused.
+    #[test]
+    fn job_fields_cannot_inject_commands() {
+        let dir = std::env::temp_dir().join(format!("zvidpt-slurm-inject-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let marker = dir.join("INJECTED");
+        let evil = format!("x\ntouch {}\n#", marker.display());
+        let output = format!("/tmp/x/out{evil}.exr");
+        let mut j = job(&["--time", "5", "--label", &evil]);
+        j.origin = format!("job {evil}");
+        j.output = output.clone().into();
+        j.args[2] = output.clone();
+        let options = SlurmOptions {
+            tasks: 2,
+            cpus_per_task: 1,
+            sbatch_args: vec![],
+            exe: "/bin/echo".into(),
+            workdir: ".".into(),
+        };
+        let (task, merge) = scripts(&j, &split_of(&j, 2).unwrap(), &options);
+        assert!(merge.is_none());
+        let out = Command::new("sh").arg("-c").arg(&task).output().unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(!marker.exists(), "a job field ran a command:\n{task}");
+        assert!(String::from_utf8(out.stdout).unwrap().contains(&output), "the output's name reaches the render");
+        // The split form and its merge script too.
+        let mut j = job(&["--spp", "8", "--label", &evil]);
+        j.origin = format!("job {evil}");
+        let (task, merge) = scripts(&j, &split_of(&j, 2).unwrap(), &options);
+        for script in [task, merge.unwrap()] {
+            Command::new("sh").arg("-c").arg(&script).env("SLURM_ARRAY_TASK_ID", "0").output().unwrap();
+            assert!(!marker.exists(), "a job field ran a command:\n{script}");
+        }
+        let mut nul = job(&["--label", "a\0b"]);
+        nul.origin = "job 2".into();
+        assert!(check_scriptable(&nul, &options).unwrap_err().to_string().contains("NUL"));
+        assert!(check_scriptable(&job(&[]), &options).is_ok());
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
