@@ -67,6 +67,24 @@ pub fn exr(data: &[u8]) {
     let _ = crate::film::read_exr_from(std::io::Cursor::new(data), Path::new("fuzz.exr"));
 }
 
+/// EXR metadata text (any UTF-8: scene paths, labels, flags) written and read back: it must
+/// come back as it was, never panic. The input is `key NUL value`.
+pub fn exr_metadata(data: &[u8]) {
+    let text = String::from_utf8_lossy(data);
+    let (key, value) = text.split_once('\0').unwrap_or(("k", &text));
+    let key = if key.is_empty() { "k" } else { key };
+    let image = crate::film::Image { width: 1, height: 1, pixels: vec![[0.0; 3]], variance: None, spp: 1 };
+    let mut meta = crate::film::Metadata::default();
+    meta.push(key, value);
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    if crate::film::write_exr_to(&mut bytes, Path::new("fuzz.exr"), &image, &meta).is_err() {
+        return;
+    }
+    let (_, read) = crate::film::read_exr_from(std::io::Cursor::new(bytes.into_inner()), Path::new("fuzz.exr"))
+        .expect("an EXR we wrote reads back");
+    assert_eq!(read.get(key), Some(value), "metadata text changed on the way");
+}
+
 /// The command line: arguments separated by NUL bytes, parsed and validated (no render).
 pub fn cli(data: &[u8]) {
     let args = std::iter::once("zvidpt".into())

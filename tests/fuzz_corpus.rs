@@ -48,6 +48,11 @@ fn ply_corpus() {
 }
 
 #[test]
+fn exr_metadata_corpus() {
+    assert!(replay("exr_metadata", zvidpt::fuzzing::exr_metadata) >= 3);
+}
+
+#[test]
 fn exr_corpus() {
     assert!(replay("exr", zvidpt::fuzzing::exr) >= 1);
 }

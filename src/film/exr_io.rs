@@ -43,16 +43,44 @@ pub fn stage_exr_with(path: &Path, image: &Image, meta: &Metadata, extra: Vec<(S
     let mut attributes = LayerAttributes::named("");
     attributes.layer_name = None;
     for (k, v) in &meta.entries {
-        attributes
-            .other
-            .insert(Text::from(format!("zvidpt.{k}").as_str()), AttributeValue::Text(Text::from(v.as_str())));
+        attributes.other.insert(utf8_text(&format!("zvidpt.{k}")), AttributeValue::Text(utf8_text(v)));
     }
-    attributes.other.insert(Text::from("zvidpt.spp"), AttributeValue::Text(Text::from(image.spp.to_string().as_str())));
+    attributes.other.insert(utf8_text("zvidpt.spp"), AttributeValue::Text(utf8_text(&image.spp.to_string())));
     let layer = Layer::new(size, attributes, Encoding::SMALL_LOSSLESS, AnyChannels::sort(channels.into()));
     let exr_image = exr::image::Image::from_layer(layer);
     stage(path, |w| {
         exr_image.write().to_buffered(w).map_err(|e| Error::Image { path: path.to_path_buf(), message: e.to_string() })
     })
+}
+
+/// [`write_exr`] into `w` (any seekable writer; `path` names it in errors), without staging.
+pub fn write_exr_to(w: impl std::io::Write + std::io::Seek, path: &Path, image: &Image, meta: &Metadata) -> Result<()> {
+    let size = (image.width as usize, image.height as usize);
+    let channels: Vec<AnyChannel<FlatSamples>> = (0..3)
+        .map(|c| AnyChannel::new(RGB[c], FlatSamples::F32(image.pixels.iter().map(|p| p[c]).collect())))
+        .collect();
+    let mut attributes = LayerAttributes::named("");
+    attributes.layer_name = None;
+    for (k, v) in &meta.entries {
+        attributes.other.insert(utf8_text(&format!("zvidpt.{k}")), AttributeValue::Text(utf8_text(v)));
+    }
+    let layer = Layer::new(size, attributes, Encoding::SMALL_LOSSLESS, AnyChannels::sort(channels.into()));
+    exr::image::Image::from_layer(layer)
+        .write()
+        .to_buffered(w)
+        .map_err(|e| Error::Image { path: path.to_path_buf(), message: e.to_string() })
+}
+
+/// An EXR text attribute holding `s` as UTF-8 bytes (OpenEXR's text is a byte string; the
+/// `exr` crate's `Text::from` takes Latin-1 alone and panics on anything else, such as a path
+/// in Japanese).
+fn utf8_text(s: &str) -> Text {
+    Text::from_slice_unchecked(s.as_bytes())
+}
+
+/// An EXR text attribute as a string: UTF-8 where it is (ours always), Latin-1 otherwise.
+fn text_string(t: &Text) -> String {
+    String::from_utf8(t.bytes().to_vec()).unwrap_or_else(|_| t.bytes().iter().map(|&b| char::from(b)).collect())
 }
 
 /// Reads an EXR's R, G, B (and variance layer, if present) and its `zvidpt.*` metadata.
@@ -115,10 +143,36 @@ pub fn read_exr_from(mut reader: impl std::io::Read + std::io::Seek, path: &Path
         .map(|v| (0..w * h).map(|i| [v[0][i], v[1][i], v[2][i]]).collect());
     let mut meta = Metadata::default();
     for (k, v) in &layer.attributes.other {
-        if let (Some(key), AttributeValue::Text(t)) = (k.to_string().strip_prefix("zvidpt."), v) {
-            meta.push(key, t.to_string());
+        if let (Some(key), AttributeValue::Text(t)) = (text_string(k).strip_prefix("zvidpt."), v) {
+            meta.push(key, text_string(t));
         }
     }
     let spp = meta.get("spp").and_then(|s| s.parse().ok()).unwrap_or(0);
     Ok((Image { width: w as u32, height: h as u32, pixels, variance, spp }, meta))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Metadata text outside Latin-1 (a scene folder named in Japanese, a euro sign, an
+    /// emoji) is written and read back as it was, not a panic after the render.
+    #[test]
+    fn metadata_round_trips_any_utf8() {
+        let dir = std::env::temp_dir().join(format!("zvidpt-exr-utf8-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("日本€.exr");
+        let image = Image { width: 2, height: 1, pixels: vec![[0.5; 3]; 2], variance: None, spp: 1 };
+        let mut meta = Metadata::default();
+        let values = [("scene", "/tmp/日本/scène€"), ("label", "🎥 latin-1: é"), ("empty", "")];
+        for (k, v) in values {
+            meta.push(k, v);
+        }
+        write_exr(&path, &image, &meta).unwrap();
+        let (_, read) = read_exr(&path).unwrap();
+        for (k, v) in values {
+            assert_eq!(read.get(k), Some(v), "{:?}", read.entries);
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
