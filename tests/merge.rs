@@ -89,8 +89,15 @@ fn wrong_parts_are_refused() {
         part("c.zvp", "4..6", "1"),
         part("d.zvp", "3..6", "2"),
     );
+    // A damaged part (one flipped bit in its sums) is refused by its checksum.
+    let e = part("e.zvp", "3..6", "1");
+    let mut bytes = std::fs::read(&e).unwrap();
+    let at = bytes.len() / 2;
+    bytes[at] ^= 0x04;
+    std::fs::write(&e, bytes).unwrap();
     let out = dir.join("m.exr");
     for (parts, expected) in [
+        (vec![&a, &e], "checksum mismatch"),
         (vec![&a, &b], "in two parts"),
         (vec![&a, &c], "samples 3..4 are in no part"),
         (vec![&a], "samples 3..6 are in no part"),

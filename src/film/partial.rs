@@ -1,18 +1,39 @@
 //! Partial renders (`zvidpt render --samples A..B`): a sample range's exact per-pixel sums,
 //! the pre-pass samples in the image, and the render's metadata, for `zvidpt merge`.
 //!
-//! Layout (little-endian): the magic `ZVIDPT-PARTIAL2\n`; the metadata as a `u32` byte count
+//! Layout (little-endian): the magic `ZVIDPT-PARTIAL3\n`; the metadata as a `u32` byte count
 //! and `key=value` lines; `width`, `height`, `first`, `spp`, `total_spp` as `u32`; per pixel
 //! the sums of R, G, B and of their squares (`i128`, fixed point 2^-40) as zigzag LEB128
 //! varints (about 40 bytes a pixel instead of 96: a checkpoint's time is its disk write); a
-//! byte saying whether pre-pass samples follow, and if so their encoding.
+//! byte saying whether pre-pass samples follow, and if so their encoding; last, the CRC-32 of
+//! every byte before it, so that a damaged file (a flipped bit, a cut) is refused, never
+//! merged or resumed.
 use super::{MAX_PIXELS, Metadata};
 use super::{Partial, PixelSums, PriorSamples};
 use crate::{Error, Result};
 use std::io::Write;
 use std::path::Path;
 
-const MAGIC: &[u8; 16] = b"ZVIDPT-PARTIAL2\n";
+const MAGIC: &[u8; 16] = b"ZVIDPT-PARTIAL3\n";
+/// The layout before the checksum: refused with a line saying so.
+const MAGIC_WITHOUT_CHECKSUM: &[u8; 16] = b"ZVIDPT-PARTIAL2\n";
+
+/// A writer that keeps the CRC-32 of everything written through it.
+struct Checksummed<'w, W: Write> {
+    inner: &'w mut W,
+    crc: crc32fast::Hasher,
+}
+
+impl<W: Write> Write for Checksummed<'_, W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.inner.write(buf)?;
+        self.crc.update(&buf[..n]);
+        Ok(n)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
+}
 /// Longest varint of an `i128` (128 bits in 7-bit groups).
 const MAX_VARINT: usize = 19;
 
@@ -82,8 +103,9 @@ pub fn stage_sums(
         text.push('\n');
     }
     let pixels = header[0] as usize * header[1] as usize;
-    super::stage(path, |w| {
+    super::stage(path, |out| {
         let io = |e| Error::io(path, e);
+        let mut w = Checksummed { inner: out, crc: crc32fast::Hasher::new() };
         w.write_all(MAGIC).map_err(io)?;
         w.write_all(&(text.len() as u32).to_le_bytes()).map_err(io)?;
         w.write_all(text.as_bytes()).map_err(io)?;
@@ -104,7 +126,9 @@ pub fn stage_sums(
             }
             None => tail.push(0),
         }
-        w.write_all(&tail).map_err(io)
+        w.write_all(&tail).map_err(io)?;
+        let crc = w.crc.finalize();
+        out.write_all(&crc.to_le_bytes()).map_err(io)
     })
 }
 
@@ -148,6 +172,9 @@ pub fn read_partial_header(path: &Path) -> Result<(PartialHeader, Metadata)> {
 fn parse_header<'a>(bytes: &'a [u8], path: &Path) -> Result<(PartialHeader, Metadata, &'a [u8])> {
     let mut b = bytes;
     let Some((magic, rest)) = b.split_first_chunk::<16>() else { return Err(bad(path, "too short")) };
+    if magic == MAGIC_WITHOUT_CHECKSUM {
+        return Err(bad(path, "written by an older zvidpt, without a checksum: render it again"));
+    }
     if magic != MAGIC {
         return Err(bad(path, "wrong magic"));
     }
@@ -182,6 +209,14 @@ fn parse_header<'a>(bytes: &'a [u8], path: &Path) -> Result<(PartialHeader, Meta
 
 /// A partial render from its bytes (`path` names it in errors).
 pub fn parse_partial(bytes: &[u8], path: &Path) -> Result<(Partial, Metadata)> {
+    // The checksum first: a damaged file is refused whatever else it says.
+    if bytes.get(..16).is_some_and(|m| m == MAGIC) {
+        let Some((body, crc)) = bytes.split_last_chunk::<4>() else { return Err(bad(path, "truncated")) };
+        if crc32fast::hash(body) != u32::from_le_bytes(*crc) {
+            return Err(bad(path, "checksum mismatch: the file is damaged"));
+        }
+    }
+    let bytes = &bytes[..bytes.len().saturating_sub(4)];
     let (PartialHeader { width, height, first, spp, total_spp }, meta, mut b) = parse_header(bytes, path)?;
     let pixels = u64::from(width) * u64::from(height);
     let pixels = pixels as usize;
@@ -272,6 +307,16 @@ mod tests {
         let mut flipped = bytes.clone();
         flipped[3] ^= 1;
         assert!(parse_partial(&flipped, &path).unwrap_err().to_string().contains("not a zvidpt partial"));
+        // A flipped bit anywhere is refused (the checksum), never merged or resumed.
+        for i in 16..bytes.len() {
+            let mut damaged = bytes.clone();
+            damaged[i] ^= 0x10;
+            let e = parse_partial(&damaged, &path).unwrap_err().to_string();
+            assert!(e.contains("checksum"), "byte {i}: {e}");
+        }
+        let mut older = bytes.clone();
+        older[..16].copy_from_slice(MAGIC_WITHOUT_CHECKSUM);
+        assert!(parse_partial(&older, &path).unwrap_err().to_string().contains("older zvidpt"));
         let mut longer = bytes;
         longer.push(0);
         assert!(parse_partial(&longer, &path).is_err());
