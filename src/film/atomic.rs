@@ -50,9 +50,50 @@ pub fn remove_pending_files() -> usize {
     n
 }
 
-fn sibling(path: &Path, suffix: &str) -> PathBuf {
+/// The part of a temporary file's name that stands for its destination: the name itself, or
+/// for a long one (whose temporary name would pass the file system's 255 bytes) its first 150
+/// bytes and a hash of the whole.
+fn stem(path: &Path) -> String {
     let name = path.file_name().map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
-    path.with_file_name(format!(".{name}.{}.{suffix}", std::process::id()))
+    if name.len() <= 200 {
+        return name;
+    }
+    let mut cut = 150;
+    while !name.is_char_boundary(cut) {
+        cut -= 1;
+    }
+    let hash = name.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3));
+    format!("{}~{hash:016x}", &name[..cut])
+}
+
+/// This machine's name (several machines may write into one shared folder: a Slurm array).
+fn host() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/hostname").map_or_else(|_| "host".into(), |h| h.trim().to_string())
+}
+
+/// A temporary sibling of `path` owned by this process: `.NAME.HOST-PID.SUFFIX`.
+fn sibling(path: &Path, suffix: &str) -> PathBuf {
+    path.with_file_name(format!(".{}.{}-{}.{suffix}", stem(path), host(), std::process::id()))
+}
+
+/// Removes temporary and backup siblings of `path` left by processes of this machine that
+/// no longer run (a render killed by SIGKILL or a power cut cannot remove its own); those of
+/// live processes and of other machines stay.
+fn remove_stale_siblings(path: &Path) {
+    let Some(dir) = path.parent().map(|d| if d.as_os_str().is_empty() { Path::new(".") } else { d }) else {
+        return;
+    };
+    let prefix = format!(".{}.{}-", stem(path), host());
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let Some(rest) = name.strip_prefix(&prefix) else { continue };
+        let Some((pid, suffix)) = rest.split_once('.') else { continue };
+        let (Ok(pid), true) = (pid.parse::<u32>(), matches!(suffix, "tmp" | "bak")) else { continue };
+        if pid != std::process::id() && !Path::new("/proc").join(pid.to_string()).exists() {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
 }
 
 fn refuse(path: &Path, message: &str) -> Error {
@@ -106,6 +147,7 @@ impl Drop for Staged {
 /// and synced). Nothing at `path` changes until [`commit`].
 pub fn stage(path: &Path, write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> Result<()>) -> Result<Staged> {
     check_destination(path)?;
+    remove_stale_siblings(path);
     let tmp = sibling(path, "tmp");
     let file = create_registered(&tmp);
     let staged = Staged { tmp: tmp.clone(), dest: path.to_path_buf() };
@@ -267,6 +309,30 @@ mod tests {
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
             .filter(|n| n.starts_with('.'))
             .collect()
+    }
+
+    /// A killed render's temporary file (its process gone) is removed by the next write of
+    /// the same output; a live process's, another output's and another machine's stay. A
+    /// name of 250 bytes can be written (its temporary name is shortened).
+    #[test]
+    fn stale_temporaries_go_and_long_names_work() {
+        let dir = scratch("stale");
+        let out = dir.join("x.exr");
+        // A pid beyond the kernel's limit never runs.
+        let dead = dir.join(format!(".x.exr.{}-4194305.tmp", host()));
+        let live = dir.join(format!(".x.exr.{}-1.tmp", host()));
+        let other_machine = dir.join(".x.exr.elsewhere-4194305.tmp");
+        let other_output = dir.join(format!(".y.exr.{}-4194305.tmp", host()));
+        for f in [&dead, &live, &other_machine, &other_output] {
+            std::fs::write(f, "left").unwrap();
+        }
+        commit(vec![stage(&out, |w| w.write_all(b"new").map_err(|e| Error::io(&out, e))).unwrap()]).unwrap();
+        assert!(!dead.exists(), "the dead process's temporary file stayed");
+        assert!(live.exists() && other_machine.exists() && other_output.exists());
+        let long = dir.join(format!("{}.exr", "é".repeat(123)));
+        assert!(long.file_name().unwrap().len() >= 250);
+        commit(vec![stage(&long, |w| w.write_all(b"long").map_err(|e| Error::io(&long, e))).unwrap()]).unwrap();
+        assert_eq!(std::fs::read_to_string(&long).unwrap(), "long");
     }
 
     #[test]
