@@ -27,6 +27,9 @@ fn handle_signals() {
             }
             // The progress bar may have left the cursor mid-line.
             eprintln!();
+            if let Some(note) = interrupt::note() {
+                eprintln!("{note}");
+            }
             exit_on(signal);
         }
     });

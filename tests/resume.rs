@@ -143,6 +143,26 @@ fn signalled(signal: &str, code: i32) {
     assert_same_bits(&out, &whole, signal);
 }
 
+/// SIGTERM during the pre-pass (the learned integrator's training), before any checkpoint
+/// exists: exit 143 with a line saying what was kept, and no file left behind.
+#[test]
+fn sigterm_during_training_says_what_was_kept() {
+    let dir = scratch("resume", "signal-training");
+    let scene = scene();
+    let out = dir.join("stopped.exr");
+    let mut args = render_args(&scene, "zvidpt", "64", &out);
+    args.extend(["--train-spp", "4000", "--progress-json"]);
+    let mut child = bin().args(&args).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
+    let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
+    while !lines.next().expect("the render reports its pre-pass").unwrap().contains("\"event\":\"prepass\"") {}
+    send_signal(child.id(), "TERM");
+    let rest: Vec<String> = lines.map(Result::unwrap).collect();
+    assert_eq!(child.wait().unwrap().code(), Some(143), "{rest:?}");
+    assert!(rest.iter().any(|l| l.contains("during the pre-pass") && l.contains("checkpoint")), "{rest:?}");
+    assert!(!out.exists());
+    assert_eq!(hidden_files(&dir), Vec::<String>::new(), "temporary files left behind");
+}
+
 #[test]
 fn sigterm_writes_the_checkpoint_and_exits_143() {
     signalled("TERM", 143);

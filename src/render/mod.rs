@@ -253,7 +253,13 @@ fn render_in_pool<A: Accel, I: Integrator>(
         volumetric: scene.volumetric(),
         max_depth: scene.render.max_depth.unwrap_or(u32::MAX),
     };
+    let marked = settings.checkpoint.as_ref().map(|_| interrupt::Prepass::new());
+    if settings.progress_json {
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr().lock(), "{}", serde_json::json!({ "event": "prepass" }));
+    }
     let prepass = integrator.prepare(&ctx, settings.seed)?;
+    drop(marked);
     let prepass_seconds = start.elapsed().as_secs_f64();
     let integrator: &I = integrator;
     let ts = settings.tile_size;
