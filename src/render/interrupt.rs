@@ -34,6 +34,12 @@ impl Prepass {
     }
 }
 
+impl Default for Prepass {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 impl Drop for Prepass {
     fn drop(&mut self) {
         IN_PREPASS.store(false, Ordering::SeqCst);
