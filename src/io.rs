@@ -3,14 +3,34 @@
 use crate::{Error, Result};
 use std::path::Path;
 
+/// Opens `path` for reading if it is a regular file, without ever blocking: the file is
+/// opened non-blocking (opening a FIFO for reading would wait for a writer, forever) and its
+/// kind checked on the open file itself (no window for it to be swapped after a check).
+/// `what` names it in the error.
+pub fn open_regular(path: &Path, what: &str) -> Result<std::fs::File> {
+    use std::os::unix::fs::OpenOptionsExt as _;
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NONBLOCK)
+        .open(path)
+        .map_err(|e| Error::io(path, e))?;
+    let meta = file.metadata().map_err(|e| Error::io(path, e))?;
+    if !meta.is_file() {
+        let article = if what.starts_with(['a', 'e', 'i', 'o', 'u', 'A', 'E', 'I', 'O', 'U']) { "an" } else { "a" };
+        return Err(Error::io(
+            path,
+            std::io::Error::other(format!("not a regular file ({article} {what} must be one)")),
+        ));
+    }
+    Ok(file)
+}
+
 /// Reads a whole file after checking that it is a regular file (a FIFO or device would hang
 /// or never end) of at most `limit` bytes. `what` names it in the error.
 pub fn read_bounded(path: &Path, limit: u64, what: &str) -> Result<Vec<u8>> {
     use std::io::Read as _;
-    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
-    if !meta.is_file() {
-        return Err(Error::io(path, std::io::Error::other(format!("not a regular file (a {what} must be one)"))));
-    }
+    let file = open_regular(path, what)?;
+    let meta = file.metadata().map_err(|e| Error::io(path, e))?;
     let too_big = |size: u64| {
         Error::io(path, std::io::Error::other(format!("{size} bytes: larger than the {limit}-byte limit for a {what}")))
     };
@@ -18,9 +38,7 @@ pub fn read_bounded(path: &Path, limit: u64, what: &str) -> Result<Vec<u8>> {
         return Err(too_big(meta.len()));
     }
     let mut bytes = Vec::with_capacity(meta.len() as usize);
-    std::fs::File::open(path)
-        .and_then(|f| f.take(limit + 1).read_to_end(&mut bytes))
-        .map_err(|e| Error::io(path, e))?;
+    file.take(limit + 1).read_to_end(&mut bytes).map_err(|e| Error::io(path, e))?;
     if bytes.len() as u64 > limit {
         return Err(too_big(bytes.len() as u64));
     }

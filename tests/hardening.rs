@@ -193,6 +193,88 @@ fn scene_and_mesh_files_must_be_regular_and_bounded() {
     fails_with(&zvidpt(&["render", s(&big), "-o", s(&d.join("o.exr")), "-q", "--spp", "1"]), "limit");
 }
 
+/// Runs the binary with `args`, failing the test if it has not ended within 30 s (a hang).
+fn zvidpt_within(args: &[&str]) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_zvidpt"))
+        .args(args)
+        .env_remove("RUST_BACKTRACE")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed().as_secs() > 30 {
+            child.kill().unwrap();
+            panic!("zvidpt {args:?} hangs");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
+
+/// Every image input that is a FIFO is refused at once (opening one for reading waits for a
+/// writer, forever): textures, environment maps, `info`, `diff`, `converge --reference`,
+/// `merge`'s parts.
+#[test]
+fn image_inputs_must_be_regular_files() {
+    let d = scene("fifoimages", LIGHT);
+    for f in ["tex.png", "env.exr", "ref.exr", "part.zvp"] {
+        assert!(Command::new("mkfifo").arg(d.join(f)).status().unwrap().success());
+    }
+    let with = |extra: &str| {
+        let t = d.join("t.toml");
+        std::fs::write(&t, format!("{}[[mesh]]\nobj = \"box.obj\"\n{extra}", camera(8, 8))).unwrap();
+        t
+    };
+    let textured =
+        with("[textures.t]\ntype = \"bitmap\"\nfile = \"tex.png\"\n[materials.white]\ndiffuse_texture = \"t\"\n");
+    fails_with(
+        &zvidpt_within(&["render", s(&textured), "-o", s(&d.join("o.exr")), "-q", "--spp", "1"]),
+        "not a regular file",
+    );
+    let lit = with("[environment]\nmap = \"env.exr\"\n");
+    fails_with(
+        &zvidpt_within(&["render", s(&lit), "-o", s(&d.join("o.exr")), "-q", "--spp", "1"]),
+        "not a regular file",
+    );
+    let reference = d.join("ref.exr");
+    fails_with(&zvidpt_within(&["info", s(&reference)]), "not a regular file");
+    fails_with(&zvidpt_within(&["diff", s(&reference), s(&reference)]), "not a regular file");
+    let study = ["converge", s(&d), "--reference", s(&reference), "--integrators", "path", "--spp", "1", "-o"];
+    fails_with(&zvidpt_within(&[&study[..], &[s(&d.join("cv"))]].concat()), "not a regular file");
+    fails_with(&zvidpt_within(&["merge", "-o", s(&d.join("m.exr")), s(&d.join("part.zvp"))]), "not a regular file");
+}
+
+/// A PNG whose header claims 20000 × 20000 pixels (a 77-byte file) is refused from its header,
+/// before 1.6 GB are allocated for it.
+#[test]
+fn image_headers_are_bounded_before_allocation() {
+    let d = scene("pngbomb", LIGHT);
+    let chunk = |kind: &[u8], data: &[u8]| {
+        let mut c = (data.len() as u32).to_be_bytes().to_vec();
+        c.extend_from_slice(kind);
+        c.extend_from_slice(data);
+        let mut crc = crc32fast::Hasher::new();
+        crc.update(kind);
+        crc.update(data);
+        c.extend_from_slice(&crc.finalize().to_be_bytes());
+        c
+    };
+    let mut ihdr = 20000u32.to_be_bytes().to_vec();
+    ihdr.extend_from_slice(&20000u32.to_be_bytes());
+    ihdr.extend_from_slice(&[8, 6, 0, 0, 0]);
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    png.extend(chunk(b"IHDR", &ihdr));
+    png.extend(chunk(b"IDAT", &[0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01]));
+    png.extend(chunk(b"IEND", &[]));
+    std::fs::write(d.join("bomb.png"), png).unwrap();
+    let t = d.join("t.toml");
+    let extra = "[textures.t]\ntype = \"bitmap\"\nfile = \"bomb.png\"\n[materials.white]\ndiffuse_texture = \"t\"\n";
+    std::fs::write(&t, format!("{}[[mesh]]\nobj = \"box.obj\"\n{extra}", camera(8, 8))).unwrap();
+    fails_with(&zvidpt_within(&["render", s(&t), "-o", s(&d.join("o.exr")), "-q", "--spp", "1"]), "20000x20000");
+}
+
 // Class 3: SIGINT or SIGTERM while an output is being written leaves no temporary file and
 // exits 130 or 143.
 

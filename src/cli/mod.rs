@@ -543,8 +543,8 @@ fn check_derived_png(path: &Path) -> Result<()> {
         return Ok(());
     }
     let mut magic = [0u8; 8];
-    let is_png =
-        std::fs::File::open(path).and_then(|mut f| f.read_exact(&mut magic)).is_ok() && magic == *b"\x89PNG\r\n\x1a\n";
+    let is_png = crate::io::open_regular(path, "PNG").is_ok_and(|mut f| f.read_exact(&mut magic).is_ok())
+        && magic == *b"\x89PNG\r\n\x1a\n";
     if is_png {
         Ok(())
     } else {

@@ -85,13 +85,7 @@ fn text_string(t: &Text) -> String {
 
 /// Reads an EXR's R, G, B (and variance layer, if present) and its `zvidpt.*` metadata.
 pub fn read_exr(path: &Path) -> Result<(Image, Metadata)> {
-    if !path.is_file() {
-        return Err(Error::io(
-            path,
-            std::fs::File::open(path).err().unwrap_or_else(|| std::io::Error::other("not a regular file")),
-        ));
-    }
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let file = crate::io::open_regular(path, "EXR image")?;
     read_exr_from(std::io::BufReader::new(file), path)
 }
 

@@ -134,16 +134,9 @@ pub fn stage_sums(
 
 /// Reads a partial render written by [`stage_partial`].
 pub fn read_partial(path: &Path) -> Result<(Partial, Metadata)> {
-    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
-    if !meta.is_file() {
-        return Err(bad(path, "not a regular file"));
-    }
     // Header, sums and pre-pass samples of the largest image, with room to spare.
     let limit = 1024 + MAX_META_BYTES as u64 + MAX_PIXELS * (6 * MAX_VARINT as u64 + 48 + 1);
-    if meta.len() > limit {
-        return Err(bad(path, "too large"));
-    }
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::io::read_bounded(path, limit, "partial render")?;
     parse_partial(&bytes, path)
 }
 
@@ -161,7 +154,7 @@ pub struct PartialHeader {
 /// of a large image are not read).
 pub fn read_partial_header(path: &Path) -> Result<(PartialHeader, Metadata)> {
     use std::io::Read as _;
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let file = crate::io::open_regular(path, "partial render")?;
     let mut head = Vec::new();
     file.take(16 + 4 + MAX_META_BYTES as u64 + 20).read_to_end(&mut head).map_err(|e| Error::io(path, e))?;
     let (header, meta, _) = parse_header(&head, path)?;

@@ -212,11 +212,19 @@ const PNG_LIMIT: usize = 2 << 30;
 
 fn load_png(path: &Path, wrap: Wrap, filter: Filter, raw: bool) -> crate::Result<Bitmap> {
     let err = |message: String| crate::Error::Image { path: path.to_path_buf(), message };
-    let file = std::fs::File::open(path).map_err(|e| crate::Error::io(path, e))?;
+    let file = crate::io::open_regular(path, "texture")?;
     let mut decoder = png::Decoder::new_with_limits(std::io::BufReader::new(file), png::Limits { bytes: PNG_LIMIT });
     // Palettes and bit depths below 8 to 8-bit channels; transparency to an alpha channel.
     decoder.set_transformations(png::Transformations::EXPAND);
     let mut reader = decoder.read_info().map_err(|e| err(format!("not a readable PNG: {e}")))?;
+    // From the header, before anything the size of the image is allocated.
+    let (w, h) = (reader.info().width, reader.info().height);
+    if u64::from(w) * u64::from(h) > crate::film::MAX_PIXELS {
+        return Err(err(format!(
+            "claims {w}x{h} pixels; this reader takes at most {} pixels",
+            crate::film::MAX_PIXELS
+        )));
+    }
     let size = reader.output_buffer_size().ok_or_else(|| err("the image is too large".into()))?;
     let mut buf = vec![0u8; size];
     let info = reader.next_frame(&mut buf).map_err(|e| err(format!("not a readable PNG: {e}")))?;
