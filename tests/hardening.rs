@@ -104,6 +104,9 @@ fn links_devices_read_only_files_and_inputs_are_not_replaced() {
     // The scene's own files are inputs.
     let o = zvidpt(&["render", s(&d), "-o", s(&d.join("box.obj")), "--no-png", "--spp", "1", "-q"]);
     fails_with(&o, "input");
+    // So is the material library the OBJ reads (loaded indirectly, through its `mtllib`).
+    let o = zvidpt(&["render", s(&d), "-o", s(&d.join("box.mtl")), "--no-png", "--spp", "1", "-q"]);
+    fails_with(&o, "input");
     // The PNG beside the EXR (a name the user did not type) replaces only a PNG.
     std::fs::write(d.join("img.png"), "not a png").unwrap();
     let o = zvidpt(&["render", s(&d), "-o", s(&d.join("img.exr")), "--spp", "1", "-q"]);

@@ -211,13 +211,28 @@ pub fn parse(text: &str, path: &Path, base: &Path) -> Result<Vec<Job>> {
     if jobs.is_empty() {
         return Err(syntax(path, "no jobs: add [[job]] tables or a [[matrix]]"));
     }
-    // Two jobs writing one file would overwrite each other (and the second would skip).
-    let mut outputs: Vec<(&Path, &str)> = jobs.iter().map(|j| (j.output.as_path(), j.origin.as_str())).collect();
+    // Two jobs writing one file would overwrite each other (and the second would skip), by
+    // any spelling of it (`./a`, `sub/../a`, a linked folder); and none may write the job file.
+    let mut outputs: Vec<(PathBuf, &Path, &str)> =
+        jobs.iter().map(|j| (crate::film::path_key(&j.output), j.output.as_path(), j.origin.as_str())).collect();
     outputs.sort();
     for w in outputs.windows(2) {
         if w[0].0 == w[1].0 {
-            return Err(syntax(path, format!("{} and {} both write {}", w[0].1, w[1].1, w[0].0.display())));
+            return Err(syntax(
+                path,
+                format!(
+                    "{} and {} both write {} (as {} and {})",
+                    w[0].2,
+                    w[1].2,
+                    w[0].0.display(),
+                    w[0].1.display(),
+                    w[1].1.display()
+                ),
+            ));
         }
+    }
+    if let Some((_, out, origin)) = outputs.iter().find(|(_, out, _)| crate::film::same_file(out, path)) {
+        return Err(syntax(path, format!("{origin} writes {}: the job file itself", out.display())));
     }
     Ok(jobs)
 }

@@ -85,6 +85,11 @@ fn malformed_job_files_name_the_problem() {
         ("[[job]]\nscene = \"a\"\n", "no `output`"),
         ("[[job]]\noutput = \"a.exr\"\n", "no `scene`"),
         ("[[job]]\nscene = \"a\"\noutput = \"o.exr\"\n[[job]]\nscene = \"b\"\noutput = \"o.exr\"\n", "both write"),
+        // One file by two spellings.
+        (
+            "[[job]]\nscene = \"a\"\noutput = \"./o.exr\"\n[[job]]\nscene = \"b\"\noutput = \"sub/../o.exr\"\n",
+            "both write",
+        ),
         ("[matrix]\nscenes = [\"a\", \"b\"]\noutput = \"o.exr\"\n", "needs {scene}"),
         ("[matrix]\nscenes = [\"a\"]\nspp = [1]\ntime = [1]\noutput = \"o.exr\"\n", "not both"),
         ("[defaults]\nscene = \"a\"\n", "cannot set `scene`"),
@@ -192,4 +197,24 @@ fn parallel_jobs_share_the_threads_and_keep_the_order() {
     let reports = run(&list, &fake, BatchOptions { parallel: 1, threads: Some(3) }, &|_| {}).unwrap();
     assert_eq!(reports.len(), 3);
     assert!(fake.rendered.lock().unwrap().iter().skip(3).all(|r| r.1 == Some(3)));
+}
+
+/// A job may not write its own job file, whatever the spelling; nor may two jobs write one
+/// file through a folder linked under another name.
+#[test]
+fn outputs_alias_neither_each_other_nor_the_job_file() {
+    let dir = std::env::temp_dir().join(format!("zvidpt-batch-alias-{}", std::process::id()));
+    std::fs::create_dir_all(dir.join("real")).unwrap();
+    let _ = std::fs::remove_file(dir.join("link"));
+    std::os::unix::fs::symlink(dir.join("real"), dir.join("link")).unwrap();
+    let file = dir.join("jobs.toml");
+    std::fs::write(&file, "").unwrap();
+    let parse_here = |text: &str| parse(text, &file, &dir).map(|_| ()).unwrap_err().to_string();
+    let own = parse_here("[[job]]\nscene = \"a\"\noutput = \"./jobs.toml\"\n");
+    assert!(own.contains("the job file itself"), "{own}");
+    let linked = parse_here(
+        "[[job]]\nscene = \"a\"\noutput = \"real/o.exr\"\n[[job]]\nscene = \"b\"\noutput = \"link/o.exr\"\n",
+    );
+    assert!(linked.contains("both write"), "{linked}");
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -220,6 +220,13 @@ pub fn run_batch(args: &BatchArgs) -> Result<()> {
         },
     };
     let (csv, json) = (summary_dir.join("summary.csv"), summary_dir.join("summary.json"));
+    if let Some(job) = jobs.iter().find(|j| film::same_file(&j.output, &csv) || film::same_file(&j.output, &json)) {
+        return Err(Error::InvalidOption(format!(
+            "{}: writes {}, the batch's own summary (choose another output or --summary-dir)",
+            job.origin,
+            job.output.display()
+        )));
+    }
     // Fail before hours of rendering if the summary cannot be written.
     film::check_writable(&csv)?;
     film::check_writable(&json)?;

@@ -426,7 +426,11 @@ impl PhotonArgs {
             meta.push("q_kappa", self.q_kappa);
             meta.push("guide", flag_name(self.guide));
         }
+        if integrator == IntegratorKind::Jensen {
+            meta.push("learned_guide", flag_name(self.learned_guide));
+        }
         if integrator == IntegratorKind::Zvidpt || self.learned_guide == Switch::On {
+            meta.push("train_spp", self.train_spp.map_or("-".into(), |n| n.to_string()));
             meta.push("roulette", flag_name(self.roulette));
             meta.push("split_samples", self.split_samples);
             meta.push("guide_mix", self.guide_mix);

@@ -241,18 +241,15 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         layers.push(("spp".into(), vec![image.spp as f32; image.pixels.len()]));
     }
 
-    let mut meta = Metadata::default();
+    // What makes the render this render (the checkpoint's identity: every setting that
+    // changes pixels), then what this run measured.
+    let mut meta = render_identity(args, &scene);
     meta.push("scene", scene.path.display());
-    meta.push("integrator", flag_name(integrator));
-    meta.push("backend", backend);
-    meta.push("seed", args.seed);
     meta.push("seconds", format!("{:.3}", stats.total_seconds()));
     meta.push("prepass_seconds", format!("{:.3}", stats.prepass_seconds));
     if let Some(p) = &stats.prepass {
         meta.push("prepass", p);
     }
-    args.photon.describe(integrator, &mut meta);
-    meta.push("scene_hash", format!("{:016x}", scene.content_hash()));
     meta.push("threads", stats.threads);
     if stats.prior_spp > 0 {
         // The image averages these pre-pass (training) samples with the `spp` final ones.
@@ -260,15 +257,13 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         meta.push("training_spp_in_image", stats.prior_spp);
     }
     meta.push("rays", stats.rays);
-    meta.push("version", crate::VERSION);
     if let Some(key) = &args.job_key {
         meta.push("job", key);
     }
     if stats.resumed_spp > 0 {
         meta.push("resumed_at_spp", stats.resumed_spp);
     }
-    if let Some((a, b)) = args.samples {
-        meta.push("samples", format!("{a}..{b}"));
+    if args.samples.is_some() {
         meta.push("spp_total", args.spp.unwrap_or(0));
     }
     // Both images or neither.
@@ -362,7 +357,8 @@ pub(super) fn render_identity(args: &RenderArgs, scene: &Scene) -> Metadata {
     meta.push("integrator", flag_name(args.integrator));
     meta.push("backend", args.machine.backend.resolved_name());
     meta.push("seed", args.seed);
-    meta.push("spp", args.spp.map_or("-".into(), |n| n.to_string()));
+    meta.push("spp", args.spp.or(scene.render.spp).map_or("-".into(), |n| n.to_string()));
+    meta.push("max_depth", scene.render.max_depth.map_or("-".into(), |n| n.to_string()));
     meta.push("time", args.time.map_or("-".into(), |t| t.to_string()));
     meta.push("samples", args.samples.map_or("-".into(), |(a, b)| format!("{a}..{b}")));
     args.photon.describe(args.integrator, &mut meta);
@@ -395,4 +391,115 @@ fn parse_sample_range(s: &str) -> std::result::Result<(u32, u32), String> {
         return Err(format!("'{s}' holds no sample (A must be below B)"));
     }
     Ok((a, b))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Flags of `render` that cannot change a pixel: outputs, PNG tone, threads, tiles,
+    /// checkpoint handling, messages, AOV layers beside the image, strictness (which only
+    /// turns warnings into errors).
+    const NEUTRAL: &[&str] = &[
+        "output",
+        "png",
+        "no-png",
+        "exposure",
+        "threads",
+        "tile-size",
+        "aov",
+        "checkpoint",
+        "checkpoint-every",
+        "no-checkpoint",
+        "resume",
+        "quiet",
+        "job-key",
+        "progress-json",
+        "strict",
+        "help",
+    ];
+
+    /// Every other flag of `render`, the integrator it applies to and a value other than its
+    /// default. A flag added without an entry in one of the two lists fails the test below.
+    const PIXEL: &[(&str, &str, &str)] = &[
+        ("integrator", "path", "jensen"),
+        ("spp", "path", "9"),
+        ("samples", "path", "0..4"),
+        ("time", "path", "3"),
+        ("seed", "path", "7"),
+        ("backend", "path", "embree"),
+        ("resolution", "path", "16x12"),
+        ("define", "path", "max_depth=3"),
+        ("max-depth", "path", "3"),
+        ("light-sampling", "path", "area"),
+        ("mis", "path", "all"),
+        ("photons", "jensen", "1000"),
+        ("knn", "jensen", "20"),
+        ("guide-grid", "jensen", "2x8"),
+        ("guide-floor", "jensen", "0.1"),
+        ("guide-cache", "jensen", "off"),
+        ("pixel-grid", "zvidpt-terminal", "1x1"),
+        ("q-max", "zvidpt-terminal", "0.5"),
+        ("q-kappa", "zvidpt-terminal", "2"),
+        ("guide", "zvidpt-terminal", "all"),
+        ("learned-guide", "jensen", "on"),
+        ("roulette", "zvidpt", "albedo"),
+        ("split-samples", "zvidpt", "100"),
+        ("train-spp", "zvidpt", "8"),
+        ("guide-mix", "zvidpt", "0.5"),
+        ("learn-mix", "zvidpt", "off"),
+        ("guide-carry", "zvidpt", "0.5"),
+        ("box-mix", "zvidpt", "0.1"),
+        ("window", "zvidpt", "3"),
+        ("max-split", "zvidpt", "4"),
+        ("roulette-cv", "zvidpt", "off"),
+        ("fallback", "zvidpt", "off"),
+        ("min-survival", "zvidpt", "0.5"),
+        ("defensive", "zvidpt", "0.1"),
+    ];
+
+    fn identity(args: &[&str]) -> Vec<(String, String)> {
+        // A Mitsuba scene, so that `-D` has a `<default>` to change.
+        let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell-mitsuba");
+        let all = [&["zvidpt", "render", scene][..], args].concat();
+        let Command::Render(r) = crate::cli::parse_from(all).unwrap().command else { unreachable!() };
+        render_identity(&r, &load_scene(&r).unwrap()).entries
+    }
+
+    /// `args` with `flag` set to `value` (replaced where it is given already).
+    fn with<'a>(args: &[&'a str], flag: &'a str, value: &'a str) -> Vec<&'a str> {
+        let mut out = args.to_vec();
+        match out.iter().position(|a| *a == flag) {
+            Some(i) => out[i + 1] = value,
+            None => out.extend([flag, value]),
+        }
+        out
+    }
+
+    /// What makes a render this render, by construction: every flag of `render` is either
+    /// known not to change pixels or changes the identity that `--resume`, `merge` and the
+    /// output's metadata compare. (`--max-depth`, `--train-spp` and `--learned-guide` did
+    /// not: a resume or a merge mixed two renders.)
+    #[test]
+    fn every_pixel_changing_flag_is_in_the_identity() {
+        use clap::CommandFactory as _;
+        let cli = Cli::command();
+        let render = cli.find_subcommand("render").unwrap();
+        for arg in render.get_arguments() {
+            let Some(long) = arg.get_long() else { continue };
+            let known = NEUTRAL.contains(&long) || PIXEL.iter().any(|(f, _, _)| *f == long);
+            assert!(known, "--{long}: add it to NEUTRAL or PIXEL (does it change pixels?)");
+        }
+        for (flag, integrator, value) in PIXEL {
+            // Without Embree compiled in, `auto` is `bvh`: there is no other backend to pick.
+            if *flag == "backend" && !crate::accel::EMBREE_AVAILABLE {
+                continue;
+            }
+            let base_args = ["--spp", "8", "--integrator", integrator];
+            let base = identity(&base_args);
+            let flag = format!("--{flag}");
+            let changed = identity(&with(&base_args, &flag, value));
+            assert_ne!(base, changed, "{flag} {value} ({integrator}) leaves the render's identity as it was");
+        }
+    }
 }

@@ -258,6 +258,28 @@ fn canonical_name(path: &Path) -> Option<PathBuf> {
     Some(std::fs::canonicalize(parent).ok()?.join(path.file_name()?))
 }
 
+/// A path's one spelling for comparing outputs: its folder resolved (links, `.`, `..`) where
+/// it exists, else the path made absolute with `.` and `..` folded lexically. `./a`,
+/// `sub/../a` and `LINK/a` (LINK a link to this folder) give the same key.
+#[must_use]
+pub fn path_key(path: &Path) -> PathBuf {
+    if let Some(c) = canonical_name(path) {
+        return c;
+    }
+    let absolute = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let mut out = PathBuf::new();
+    for c in absolute.components() {
+        match c {
+            std::path::Component::CurDir => {}
+            std::path::Component::ParentDir => {
+                out.pop();
+            }
+            other => out.push(other),
+        }
+    }
+    out
+}
+
 /// Whether two paths name the same file (existing or to be created).
 #[must_use]
 pub fn same_file(a: &Path, b: &Path) -> bool {

@@ -9,7 +9,7 @@ mod png_out;
 mod sums;
 
 pub use atomic::{
-    Staged, check_destination, check_outputs, check_writable, commit, remove_pending_files, same_file, stage,
+    Staged, check_destination, check_outputs, check_writable, commit, path_key, remove_pending_files, same_file, stage,
     write_atomically,
 };
 pub use exr_io::{read_exr, read_exr_from, stage_exr, stage_exr_with, write_exr, write_exr_to};

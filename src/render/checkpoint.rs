@@ -58,8 +58,15 @@ impl Resume {
                 path.display()
             )));
         }
-        for (key, want) in &meta.entries {
-            let have = found.get(key).unwrap_or("(none)");
+        // Both ways: a key of the checkpoint's render that this one lacks (a flag that applies
+        // to one integrator only) differs too.
+        let extra = found
+            .entries
+            .iter()
+            .filter(|(k, _)| ![MARK, SECONDS, TRAINING].contains(&k.as_str()) && meta.get(k).is_none())
+            .map(|(k, _)| (k.clone(), "(none)".to_string()));
+        for (key, want) in meta.entries.iter().cloned().chain(extra) {
+            let have = found.get(&key).unwrap_or("(none)");
             if have != want {
                 return Err(Error::InvalidOption(format!(
                     "{} is the checkpoint of another render ({key} {have} there, {want} here); \

@@ -405,6 +405,11 @@ impl Scene {
                 eat(2);
             }
         }
+        // A depth limit (the scene's, or the command line's over it) only where there is one
+        // (older hashes stay valid): it changes every pixel's light.
+        if let Some(d) = self.render.max_depth {
+            format!("max_depth {d}").bytes().for_each(|b| eat(u32::from(b)));
+        }
         // Media only where a scene has them (older hashes stay valid).
         if self.volumetric() {
             format!("media {:?} {:?} {:?}", self.media, self.material_media, self.camera_medium)

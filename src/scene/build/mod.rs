@@ -378,6 +378,9 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
             sources.push(mesh_path.clone());
             let file_parsed =
                 parsed.remove(&mesh_key).ok_or_else(|| invalid(path, format!("mesh `{file}`: not read")))?;
+            if let Ok(ParsedMesh::Obj(obj)) = &file_parsed {
+                sources.extend(obj.mtl_files.iter().cloned());
+            }
             read_mesh(path, mesh, file, &mesh_path, file_parsed, &mut meshes)?;
             if uses.get(&mesh_key).is_some_and(|&n| n > 1) {
                 read_before.insert(mesh_key, copy_geometry(&meshes.geometry, start));

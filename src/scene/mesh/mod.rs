@@ -436,6 +436,8 @@ pub(super) struct ParsedObj {
     models: Vec<tobj::Model>,
     mtl: Result<Vec<tobj::Material>, tobj::LoadError>,
     mtl_note: Option<String>,
+    /// The material libraries it read (inputs no output may replace).
+    pub(crate) mtl_files: Vec<std::path::PathBuf>,
 }
 
 /// Reads and parses the mesh file `mesh_path` (PLY when `is_ply`, else OBJ with its `mtllib`
@@ -458,8 +460,10 @@ pub(super) fn parse_mesh_file(mesh_path: &Path, is_ply: bool) -> Result<ParsedMe
     let folder = mesh_path.parent().unwrap_or(Path::new("."));
     // tobj only learns that a library failed; why goes here.
     let mtl_note = RefCell::new(None);
+    let mtl_files = RefCell::new(Vec::new());
     let loader = |name: &Path| {
         let path = folder.join(name);
+        mtl_files.borrow_mut().push(path.clone());
         match read_text(&path, MAX_MESH_BYTES, "material library (MTL)") {
             Ok(t) => parse_mtl(&t),
             Err(e) => {
@@ -468,7 +472,9 @@ pub(super) fn parse_mesh_file(mesh_path: &Path, is_ply: bool) -> Result<ParsedMe
             }
         }
     };
-    parse_obj(mesh_path, &text, &loader, &mtl_note).map(ParsedMesh::Obj)
+    let mut obj = parse_obj(mesh_path, &text, &loader, &mtl_note)?;
+    obj.mtl_files = mtl_files.take();
+    Ok(ParsedMesh::Obj(obj))
 }
 
 /// Adds a `[[mesh]]`'s file, as [`parse_mesh_file`] read it, to `meshes` (before its
@@ -696,7 +702,7 @@ fn parse_obj(
         tobj::LoadOptions { triangulate: false, ignore_points: false, ignore_lines: false, ..Default::default() };
     let (models, mtl) = tobj::load_obj_buf(&mut text.as_bytes(), &options, mtl_loader)
         .map_err(|e| Error::Mesh { path: obj_path.to_path_buf(), message: format!("not a valid OBJ file ({e})") })?;
-    Ok(ParsedObj { models, mtl, mtl_note: mtl_note.take() })
+    Ok(ParsedObj { models, mtl, mtl_note: mtl_note.take(), mtl_files: Vec::new() })
 }
 
 /// Adds the triangles of the parsed OBJ file `obj` (named `obj_path` in errors).
@@ -709,7 +715,7 @@ fn obj_models_into(
 ) -> Result<()> {
     let Meshes { materials, by_name, geometry } = meshes;
     let mesh_err = |message: String| Error::Mesh { path: obj_path.to_path_buf(), message };
-    let ParsedObj { models, mtl, mut mtl_note } = obj;
+    let ParsedObj { models, mtl, mut mtl_note, .. } = obj;
     // MTL materials: a name the scene file defines wins; otherwise Kd/Ke from the MTL.
     let mut mtl_ids = Vec::new();
     match mtl {
