@@ -278,6 +278,32 @@ fn image_headers_are_bounded_before_allocation() {
     fails_with(&zvidpt_within(&["render", s(&t), "-o", s(&d.join("o.exr")), "-q", "--spp", "1"]), "20000x20000");
 }
 
+/// 500 spheres of 81,920 triangles each exceed the triangle cap: refused before any is
+/// tessellated, within 1 GB of address space (tessellating up to the cap took 4 GB, and
+/// under this limit aborted on a failed allocation).
+#[test]
+fn the_triangle_cap_is_checked_before_tessellating() {
+    let d = scratch("spheres");
+    let mut text = String::from(
+        "[camera]\neye = [0.0, 0.0, 50.0]\nlook_at = [0.0, 0.0, 0.0]\nfov_y = 60.0\nwidth = 8\nheight = 8\n[materials.m]\nemission = [1.0, 1.0, 1.0]\n",
+    );
+    for i in 0..500 {
+        text.push_str(&format!(
+            "[[shape]]\ntype = \"sphere\"\nmaterial = \"m\"\ncenter = [{}.0, 0.0, 0.0]\nradius = 0.2\n",
+            i - 250
+        ));
+    }
+    std::fs::write(d.join("scene.toml"), text).unwrap();
+    let script = format!(
+        "ulimit -v 1000000; exec {} render {} -o {} -q --spp 1",
+        env!("CARGO_BIN_EXE_zvidpt"),
+        s(&d),
+        s(&d.join("o.exr"))
+    );
+    let o = Command::new("sh").arg("-c").arg(script).env_remove("RUST_BACKTRACE").output().unwrap();
+    fails_with(&o, "more than 33554432");
+}
+
 // Class 3: SIGINT or SIGTERM while an output is being written leaves no temporary file and
 // exits 130 or 143.
 

@@ -249,6 +249,18 @@ pub(super) fn shape_corners(kind: ShapeKind, t: &[Vec3A; 3], centre: Vec3A, radi
 }
 
 /// Adds the triangles of the `k`-th `[[shape]]`.
+/// The triangles shape `s` tessellates into (at most: degenerate ones are dropped).
+pub(super) fn shape_triangles(s: &ShapeDescription) -> usize {
+    match s.kind {
+        ShapeKind::Rectangle => 2,
+        ShapeKind::Cube => 12,
+        ShapeKind::Disk => s.segments.unwrap_or(shapes::DISK_SEGMENTS).min(1 << 20) as usize,
+        ShapeKind::Sphere => {
+            20usize << (2 * s.subdivisions.unwrap_or(shapes::SPHERE_SUBDIVISIONS).min(shapes::MAX_SPHERE_SUBDIVISIONS))
+        }
+    }
+}
+
 pub(super) fn add_shape(path: &Path, k: usize, s: &ShapeDescription, meshes: &mut Meshes) -> Result<()> {
     let err = |m: String| invalid(path, format!("shape {} ({:?}): {m}", k + 1, s.kind));
     let material = *meshes.by_name.get(&s.material).ok_or_else(|| err(format!("unknown material `{}`", s.material)))?;
@@ -260,6 +272,10 @@ pub(super) fn add_shape(path: &Path, k: usize, s: &ShapeDescription, meshes: &mu
         return Err(err("`segments` is for disks".into()));
     }
     let (centre, radius) = (vec3(s.center.unwrap_or([0.0; 3])), s.radius.unwrap_or(1.0));
+    // The triangle cap before tessellating.
+    if meshes.geometry.triangles.len() + shape_triangles(s) > MAX_TRIANGLES {
+        return Err(err(format!("more than {MAX_TRIANGLES} triangles in the scene")));
+    }
     let local = match s.kind {
         ShapeKind::Rectangle => shapes::rectangle(),
         ShapeKind::Cube => shapes::cube(),
