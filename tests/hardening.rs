@@ -278,6 +278,18 @@ fn image_headers_are_bounded_before_allocation() {
     fails_with(&zvidpt_within(&["render", s(&t), "-o", s(&d.join("o.exr")), "-q", "--spp", "1"]), "20000x20000");
 }
 
+/// A part of a render (`--samples`) written under an image's name is refused (it holds sums
+/// for `merge`, not an image); a depth limit of 0 warns that the image is black.
+#[test]
+fn parts_are_not_images_and_depth_zero_warns() {
+    let d = scene("partname", LIGHT);
+    let o = zvidpt(&["render", s(&d), "-o", s(&d.join("p.exr")), "-q", "--spp", "4", "--samples", "0..2"]);
+    fails_with(&o, ".zvp");
+    assert!(!d.join("p.exr").exists());
+    let o = zvidpt(&["render", s(&d), "-o", s(&d.join("o.exr")), "-q", "--spp", "1", "--max-depth", "0"]);
+    assert!(o.status.success() && stderr(&o).contains("the image is black"), "{}", stderr(&o));
+}
+
 /// 500 spheres of 81,920 triangles each exceed the triangle cap: refused before any is
 /// tessellated, within 1 GB of address space (tessellating up to the cap took 4 GB, and
 /// under this limit aborted on a failed allocation).

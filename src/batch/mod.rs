@@ -350,6 +350,29 @@ fn expand_matrix(
             format!("{origin}: `output` must be a template string, e.g. \"out/{{scene}}-{{integrator}}.exr\""),
         ));
     };
+    // Every placeholder must have a value here (one left out would silently become "").
+    let defined = |name: &str| match name {
+        "scene" => true,
+        "integrator" => t.contains_key("integrators"),
+        "spp" | "time" => budget_key == name,
+        "seed" => t.contains_key("seeds"),
+        _ => false,
+    };
+    let mut rest = template.as_str();
+    while let Some(open) = rest.find('{') {
+        let Some(len) = rest[open..].find('}') else { break };
+        let name = &rest[open + 1..open + len];
+        if !defined(name) {
+            return Err(syntax(
+                path,
+                format!(
+                    "{origin}: `output` uses {{{name}}}, which this matrix gives no value \
+                     ({{scene}} always; {{integrator}}, {{spp}}, {{time}}, {{seed}} with their lists)"
+                ),
+            ));
+        }
+        rest = &rest[open + len + 1..];
+    }
     let count = scenes.len() * integrators.len() * budgets.len() * seeds.len();
     if jobs.len() + count > MAX_JOBS {
         return Err(syntax(path, format!("{origin} expands to more than {MAX_JOBS} jobs")));

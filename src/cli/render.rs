@@ -118,6 +118,13 @@ pub(super) fn check_render_options(args: &RenderArgs) -> Result<()> {
         )));
     }
     if let Some((a, b)) = args.samples {
+        // A part holds exact sums for `merge`, not an image: an image's name would mislead.
+        if args.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr") || e.eq_ignore_ascii_case("png")) {
+            return Err(Error::InvalidOption(format!(
+                "-o {}: a part of a render (--samples) is not an image; name it .zvp (zvidpt merge writes the image)",
+                args.output.display()
+            )));
+        }
         let Some(n) = args.spp else {
             return Err(Error::InvalidOption("--samples A..B needs --spp N, the whole render's sample count".into()));
         };
@@ -177,8 +184,13 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         && !matches!(args.integrator, IntegratorKind::Path | IntegratorKind::Jensen | IntegratorKind::Zvidpt)
     {
         warn!(
-            "warning: a max depth ({d}) is honoured by path, jensen and zvidpt only: {:?} counts paths of every length",
-            args.integrator
+            "warning: a max depth ({d}) is honoured by path, jensen and zvidpt only: {} counts paths of every length",
+            flag_name(args.integrator)
+        );
+    }
+    if scene.render.max_depth == Some(0) {
+        warn!(
+            "warning: a max depth of 0 counts no path segment at all: the image is black (1: emitters seen directly)"
         );
     }
     if let Some(c) = &checkpoint {
