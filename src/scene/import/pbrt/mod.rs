@@ -45,7 +45,8 @@ struct Parser<'o> {
     /// The include guard, with every file read (the scene's sources).
     includes: Includes,
     state: State,
-    stack: Vec<State>,
+    /// Saved states of the open `AttributeBegin`s, with where each began.
+    stack: Vec<(State, At)>,
     named_frames: HashMap<String, DMat4>,
     /// Named materials' names in the description (`MakeNamedMaterial` → `named:NAME`).
     named_materials: HashMap<String, String>,
@@ -56,6 +57,8 @@ struct Parser<'o> {
     /// (material, area light) → the emitting material made for them.
     emitting: HashMap<String, String>,
     camera_seen: bool,
+    /// Past `WorldBegin`.
+    in_world: bool,
     film: (i64, i64, Option<[f64; 4]>),
     camera: Option<(DMat4, f64, At)>,
     /// Objects (`ObjectBegin`) by name, and the one being defined with where it began.
@@ -105,6 +108,7 @@ pub(crate) fn import(path: &Path, text: &str, options: &ImportOptions) -> Result
         count: 0,
         emitting: HashMap::new(),
         camera_seen: false,
+        in_world: false,
         film: (1280, 720, None),
         camera: None,
         objects: HashMap::new(),
@@ -558,6 +562,10 @@ mod tests {
             ),
             ("WorldBegin NamedMaterial \"nope\"", "no such material"),
             ("Rotate 10 0 0 0", "axis"),
+            ("WorldBegin Camera \"perspective\"", "after WorldBegin"),
+            ("WorldBegin Film \"rgb\"", "after WorldBegin"),
+            ("WorldBegin WorldBegin", "second WorldBegin"),
+            ("WorldBegin AttributeBegin Shape \"sphere\"", "not closed"),
             ("Camera \"orthographic\"", "perspective"),
         ] {
             let e = message(read(text, false));

@@ -11,6 +11,10 @@ use std::rc::Rc;
 impl Parser<'_> {
     /// Camera, film, sampler, integrator and pixel filter.
     pub(super) fn option_directive(&mut self, d: &str, c: &mut Cursor, at: &At) -> Result<bool> {
+        // pbrt-v4 reads the rendering options before `WorldBegin` only (it refuses them after).
+        if self.in_world && matches!(d, "Camera" | "Film" | "Sampler" | "Integrator" | "PixelFilter" | "Accelerator") {
+            return Err(syntax(at, format!("{d} after WorldBegin: rendering options come before it")));
+        }
         match d {
             "Camera" => {
                 let kind = c.text(d)?;
@@ -137,6 +141,13 @@ impl Parser<'_> {
     pub(super) fn finish(&mut self) -> Result<()> {
         if let Some((name, _, at)) = &self.defining {
             return Err(syntax(at, format!("ObjectBegin \"{name}\" without an ObjectEnd")));
+        }
+        // pbrt-v4 refuses a scene that ends inside a block.
+        if let Some((_, at)) = self.stack.last() {
+            return Err(syntax(
+                at,
+                "this block (AttributeBegin or TransformBegin) is not closed before the scene ends",
+            ));
         }
         for (material, mesh, origin) in std::mem::take(&mut self.curves) {
             self.out.inline_meshes.push(curve_mesh(mesh, material, origin));

@@ -33,13 +33,13 @@ impl Parser<'_> {
                     return Err(syntax(at, format!("{d} nests deeper than {MAX_ATTRIBUTE_DEPTH}")));
                 }
                 // As pbrt-v4: an attribute block of its own, shapes without area lights.
-                self.stack.push(self.state.clone());
+                self.stack.push((self.state.clone(), at.clone()));
                 self.defining = Some((name, Prototype::mark(&self.out), at.clone()));
             }
             "ObjectEnd" => {
                 let (name, mark, _) =
                     self.defining.take().ok_or_else(|| syntax(at, "ObjectEnd without an ObjectBegin"))?;
-                self.state = self.stack.pop().ok_or_else(|| syntax(at, "ObjectEnd without a matching begin"))?;
+                self.state = self.stack.pop().ok_or_else(|| syntax(at, "ObjectEnd without a matching begin"))?.0;
                 let prototype = Prototype::capture(&mut self.out, mark);
                 if self.objects.insert(name.clone(), prototype).is_some() {
                     self.unsupported(at, format!("object \"{name}\" is defined again: the new definition used"))?;

@@ -102,10 +102,10 @@ impl Parser<'_> {
                 if self.stack.len() >= MAX_ATTRIBUTE_DEPTH {
                     return Err(syntax(at, format!("{d} nests deeper than {MAX_ATTRIBUTE_DEPTH}")));
                 }
-                self.stack.push(self.state.clone());
+                self.stack.push((self.state.clone(), at.clone()));
             }
             "AttributeEnd" | "TransformEnd" => {
-                let saved = self.stack.pop().ok_or_else(|| syntax(at, format!("{d} without a matching begin")))?;
+                let (saved, _) = self.stack.pop().ok_or_else(|| syntax(at, format!("{d} without a matching begin")))?;
                 if d == "TransformEnd" {
                     self.state.ctm = saved.ctm;
                 } else {
@@ -113,6 +113,10 @@ impl Parser<'_> {
                 }
             }
             "WorldBegin" => {
+                if self.in_world {
+                    return Err(syntax(at, "a second WorldBegin"));
+                }
+                self.in_world = true;
                 self.named_frames.insert("camera".into(), self.state.ctm);
                 self.state.ctm = DMat4::IDENTITY;
             }
