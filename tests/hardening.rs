@@ -278,6 +278,27 @@ fn image_headers_are_bounded_before_allocation() {
     fails_with(&zvidpt_within(&["render", s(&t), "-o", s(&d.join("o.exr")), "-q", "--spp", "1"]), "20000x20000");
 }
 
+/// One rule for every light's strength, as for emitting materials: a point or spot light's
+/// intensity, a distant light's irradiance and an environment's radiance above 1e12 are
+/// refused (a point light of 1e30 rendered an image whose every sample's square overflowed).
+#[test]
+fn every_light_kind_has_one_strength_bound() {
+    let d = scratch("strength");
+    for (name, light) in [
+        ("point", "[[light]]\ntype = \"point\"\nposition = [0.0, 0.5, 1.0]\nintensity = [1e30, 1.0, 1.0]\n"),
+        (
+            "spot",
+            "[[light]]\ntype = \"spot\"\nposition = [0.0, 0.5, 1.0]\ndirection = [0.0, 0.0, -1.0]\nintensity = [1e30, 1.0, 1.0]\n",
+        ),
+        ("distant", "[[light]]\ntype = \"distant\"\ndirection = [0.0, 0.0, -1.0]\nirradiance = [1e30, 1.0, 1.0]\n"),
+        ("sky", "[environment]\nradiance = [1.0, 1.0, 1.0]\nscale = 1e30\n"),
+    ] {
+        let f = d.join(format!("{name}.toml"));
+        std::fs::write(&f, format!("{}[materials.m]\ndiffuse = [0.5, 0.5, 0.5]\n[[shape]]\ntype = \"rectangle\"\nmaterial = \"m\"\n{light}", camera(8, 8))).unwrap();
+        fails_with(&zvidpt(&["render", s(&f), "-o", s(&d.join("o.exr")), "-q", "--spp", "1"]), "[0, 1e12]");
+    }
+}
+
 /// A part of a render (`--samples`) written under an image's name is refused (it holds sums
 /// for `merge`, not an image); a depth limit of 0 warns that the image is black.
 #[test]

@@ -479,6 +479,16 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
     Ok(scene)
 }
 
+/// One rule for every light's strength (as for emitting materials): finite, non-negative and
+/// at most [`MAX_EMISSION`] per channel, beyond which a sample's square overflows.
+fn check_strength(path: &Path, what: &str, v: Vec3A) -> Result<()> {
+    if v.is_finite() && v.min_element() >= 0.0 && v.max_element() <= MAX_EMISSION {
+        Ok(())
+    } else {
+        Err(invalid(path, format!("{what} must lie in [0, {MAX_EMISSION:e}] per channel, got {v}")))
+    }
+}
+
 /// The point and spot lights and the environment of a scene file, and the files they read.
 fn lights_from(path: &Path, d: &SceneDescription) -> Result<(Lights, Vec<PathBuf>)> {
     let mut lights = Lights::default();
@@ -503,12 +513,15 @@ fn lights_from(path: &Path, d: &SceneDescription) -> Result<(Lights, Vec<PathBuf
                     ("beam", l.beam.is_some()),
                     ("irradiance", l.irradiance.is_some()),
                 ])?;
-                let light = PointLight::point(need("position", l.position)?, need("intensity", l.intensity)?);
+                let intensity = need("intensity", l.intensity)?;
+                check_strength(path, &format!("light {}: intensity", k + 1), intensity)?;
+                let light = PointLight::point(need("position", l.position)?, intensity);
                 lights.points.push(light.map_err(err)?);
             }
             LightKind::Spot => {
                 forbid(&[("irradiance", l.irradiance.is_some())])?;
                 let (position, intensity) = (need("position", l.position)?, need("intensity", l.intensity)?);
+                check_strength(path, &format!("light {}: intensity", k + 1), intensity)?;
                 let direction = need("direction", l.direction)?;
                 let light = PointLight::spot(position, direction, intensity, l.cutoff.unwrap_or(20.0), l.beam);
                 lights.points.push(light.map_err(err)?);
@@ -521,9 +534,7 @@ fn lights_from(path: &Path, d: &SceneDescription) -> Result<(Lights, Vec<PathBuf
                     ("beam", l.beam.is_some()),
                 ])?;
                 let (direction, irradiance) = (need("direction", l.direction)?, need("irradiance", l.irradiance)?);
-                if irradiance.max_element() > MAX_EMISSION {
-                    return Err(invalid(path, format!("light {}: irradiance must be at most {MAX_EMISSION:e}", k + 1)));
-                }
+                check_strength(path, &format!("light {}: irradiance", k + 1), irradiance)?;
                 lights.distant.push(crate::light::DistantLight::new(direction, irradiance).map_err(err)?);
             }
         }
@@ -536,12 +547,7 @@ fn lights_from(path: &Path, d: &SceneDescription) -> Result<(Lights, Vec<PathBuf
         let env = match (&e.radiance, &e.map) {
             (Some(r), None) => {
                 let r = vec3(*r) * scale;
-                if !r.is_finite() || r.min_element() < 0.0 || r.max_element() > MAX_EMISSION {
-                    return Err(invalid(
-                        path,
-                        format!("environment: radiance must lie in [0, {MAX_EMISSION:e}], got {r}"),
-                    ));
-                }
+                check_strength(path, "environment: radiance (times scale)", r)?;
                 Environment::constant(r)
             }
             (None, Some(file)) => {
@@ -554,6 +560,8 @@ fn lights_from(path: &Path, d: &SceneDescription) -> Result<(Lights, Vec<PathBuf
                         message: "an environment map must be finite and non-negative".into(),
                     });
                 }
+                let brightest = texels.iter().fold(Vec3A::ZERO, |m, t| m.max(*t)) * scale;
+                check_strength(path, "environment: the map's brightest texel (times scale)", brightest)?;
                 sources.push(file.clone());
                 let layout = e.layout.unwrap_or(MapLayout::Equirectangular);
                 let rotation = match e.matrix {
