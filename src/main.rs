@@ -35,6 +35,12 @@ fn handle_signals() {
     });
 }
 
+/// The error as one line whatever it quotes: control characters (a newline in a file name)
+/// written as escapes.
+fn one_line(message: &str) -> String {
+    message.chars().flat_map(|c| if c.is_control() { c.escape_default().collect() } else { vec![c] }).collect()
+}
+
 fn main() {
     // clap prints its whole message (what is wrong, valid values, "did you mean", usage) and
     // exits 2; help and version exit 0.
@@ -47,7 +53,7 @@ fn main() {
         }
         Err(e) if e.is_broken_pipe() => {}
         Err(e) => {
-            eprintln!("error: {e}");
+            eprintln!("error: {}", one_line(&e.to_string()));
             std::process::exit(1);
         }
         // A signal that came as the work finished: the outputs are whole; say it was stopped.

@@ -278,6 +278,14 @@ fn image_headers_are_bounded_before_allocation() {
     fails_with(&zvidpt_within(&["render", s(&t), "-o", s(&d.join("o.exr")), "-q", "--spp", "1"]), "20000x20000");
 }
 
+/// An error quoting a file name with a newline in it is still one line.
+#[test]
+fn errors_are_one_line_whatever_they_quote() {
+    let d = scratch("newline");
+    let o = zvidpt(&["render", s(&d.join("no\nsuch\rscene.toml")), "-o", s(&d.join("o.exr")), "-q", "--spp", "1"]);
+    fails_with(&o, "no\\nsuch\\rscene.toml");
+}
+
 /// One rule for every light's strength, as for emitting materials: a point or spot light's
 /// intensity, a distant light's irradiance and an environment's radiance above 1e12 are
 /// refused (a point light of 1e30 rendered an image whose every sample's square overflowed).
