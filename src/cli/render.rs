@@ -439,7 +439,8 @@ mod tests {
         ("samples", "path", "0..4"),
         ("time", "path", "3"),
         ("seed", "path", "7"),
-        ("backend", "path", "embree"),
+        // (`auto` is Embree where it is compiled in: `bvh` is the other choice.)
+        ("backend", "path", "bvh"),
         ("resolution", "path", "16x12"),
         ("define", "path", "max_depth=3"),
         ("max-depth", "path", "3"),
