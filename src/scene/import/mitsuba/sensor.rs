@@ -100,11 +100,11 @@ impl Translator<'_, '_> {
                 "sampler" => {
                     self.check_params(o, &["sample_count", "seed", "jitter"])?;
                     let n = self.integer(o, "sample_count", 4)?;
-                    if n < 1 {
-                        return Err(syntax(&o.at, format!("sample_count must be at least 1, got {n}")));
-                    }
+                    let Some(n) = u32::try_from(n).ok().filter(|&n| n >= 1) else {
+                        return Err(syntax(&o.at, format!("sample_count must lie in 1..={}, got {n}", u32::MAX)));
+                    };
                     let render = self.out.render.get_or_insert_with(RenderDescription::default);
-                    render.spp = Some(u32::try_from(n).unwrap_or(u32::MAX));
+                    render.spp = Some(n);
                 }
                 other => self.unsupported(&o.at, format!("a <{other}> inside the sensor is not supported: ignored"))?,
             }

@@ -300,6 +300,10 @@ fn malformed_files_are_one_error() {
         ("<shape type=\"cube\"><transform name=\"to_world\"><matrix value=\"1 2 3\"/></transform></shape>", "16"),
         ("<boolean name=\"b\" value=\"yes\"/>", "true nor false"),
         ("<sensor type=\"orthographic\"/>", "perspective"),
+        (
+            "<sensor type=\"perspective\"><sampler type=\"independent\"><integer name=\"sample_count\" value=\"5000000000\"/></sampler></sensor>",
+            "1..=4294967295",
+        ),
     ] {
         let e = message(read(body, &[], false));
         assert!(e.contains(want), "{body}: {e}");

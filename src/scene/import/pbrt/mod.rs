@@ -565,6 +565,7 @@ mod tests {
             ("WorldBegin Camera \"perspective\"", "after WorldBegin"),
             ("WorldBegin Film \"rgb\"", "after WorldBegin"),
             ("WorldBegin WorldBegin", "second WorldBegin"),
+            ("Sampler \"independent\" \"integer pixelsamples\" 5000000000", "1..=4294967295"),
             ("WorldBegin AttributeBegin Shape \"sphere\"", "not closed"),
             ("Camera \"orthographic\"", "perspective"),
         ] {

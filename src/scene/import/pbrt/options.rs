@@ -50,13 +50,12 @@ impl Parser<'_> {
                 let _kind = c.text(d)?;
                 let params = c.params()?;
                 let n = params.integer("pixelsamples", 16, at)?;
-                if n < 1 {
-                    return Err(syntax(at, format!("pixelsamples must be at least 1, got {n}")));
-                }
+                let Some(n) = u32::try_from(n).ok().filter(|&n| n >= 1) else {
+                    return Err(syntax(at, format!("pixelsamples must lie in 1..={}, got {n}", u32::MAX)));
+                };
                 params.get("seed");
                 params.get("randomization");
-                self.out.render.get_or_insert_with(RenderDescription::default).spp =
-                    Some(u32::try_from(n).unwrap_or(u32::MAX));
+                self.out.render.get_or_insert_with(RenderDescription::default).spp = Some(n);
                 self.check_unused("Sampler", &params, at)?;
             }
             "Integrator" => {
