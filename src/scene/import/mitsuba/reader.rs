@@ -2,6 +2,9 @@
 //! and `-D` values substituted, every value and transform parsed where it stands.
 use super::*;
 
+/// Longest attribute value `$name` substitution may make (a scene file is at most 16 MiB).
+const MAX_SUBSTITUTED_BYTES: usize = 1 << 24;
+
 impl Reader<'_> {
     /// A warning, or with `--strict` the error it would be.
     pub(super) fn unsupported(&mut self, at: &At, message: String) -> Result<()> {
@@ -53,7 +56,8 @@ impl Reader<'_> {
             .ok_or_else(|| syntax(at, format!("<{}> needs the attribute `{name}`", node.tag_name().name())))
     }
 
-    /// `$name` (or `${name}`) replaced by the `-D` value or `<default>`.
+    /// `$name` (or `${name}`) replaced by the `-D` value or `<default>`; at most
+    /// [`MAX_SUBSTITUTED_BYTES`] in all.
     fn substitute(&self, text: &str, at: &At) -> Result<String> {
         if !text.contains('$') {
             return Ok(text.to_string());
@@ -82,6 +86,13 @@ impl Reader<'_> {
                 .map(|(_, v)| v.as_str())
                 .or_else(|| self.defaults.get(name).map(String::as_str))
                 .ok_or_else(|| syntax(at, format!("`${name}` has no value (give -D {name}=... or a <default>)")))?;
+            // Defaults may name defaults: doubling at each of 40 levels would reach terabytes.
+            if out.len() + value.len() > MAX_SUBSTITUTED_BYTES {
+                return Err(syntax(
+                    at,
+                    format!("substituting `${name}` makes a value longer than {MAX_SUBSTITUTED_BYTES} bytes"),
+                ));
+            }
             out.push_str(value);
             rest = after;
         }

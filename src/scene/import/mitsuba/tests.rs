@@ -415,3 +415,15 @@ fn media_nest_and_are_shared() {
     assert!(r.description.media.is_empty() && r.description.materials.values().all(|m| m.interior_medium.is_none()));
     assert!(r.warnings.iter().any(|w| w.contains("heterogeneous")), "{:?}", r.warnings);
 }
+
+/// Defaults that name defaults cannot expand without bound: 40 levels of doubling are refused
+/// once a value would pass 16 MiB (they hung, growing towards terabytes).
+#[test]
+fn defaults_cannot_expand_without_bound() {
+    let mut body = String::from("<default name=\"a0\" value=\"xxxxxxxxxxxxxxxx\"/>\n");
+    for i in 1..40 {
+        body.push_str(&format!("<default name=\"a{i}\" value=\"$a{}$a{}\"/>\n", i - 1, i - 1));
+    }
+    body.push_str("<shape type=\"sphere\"><float name=\"radius\" value=\"$a39\"/></shape>");
+    assert!(message(read(&body, &[], true)).contains("longer than"));
+}
