@@ -72,7 +72,8 @@ pub fn exr(data: &[u8]) {
 pub fn exr_metadata(data: &[u8]) {
     let text = String::from_utf8_lossy(data);
     let (key, value) = text.split_once('\0').unwrap_or(("k", &text));
-    let key = if key.is_empty() { "k" } else { key };
+    // (`spp` is the encoder's own key.)
+    let key = if key.is_empty() || key == "spp" { "k" } else { key };
     let image = crate::film::Image { width: 1, height: 1, pixels: vec![[0.0; 3]], variance: None, spp: 1 };
     let mut meta = crate::film::Metadata::default();
     meta.push(key, value);

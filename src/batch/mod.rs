@@ -350,7 +350,8 @@ fn expand_matrix(
             format!("{origin}: `output` must be a template string, e.g. \"out/{{scene}}-{{integrator}}.exr\""),
         ));
     };
-    // Every placeholder must have a value here (one left out would silently become "").
+    // Every `{field}` of the template must have a value here (one left out would silently
+    // become "").
     let defined = |name: &str| match name {
         "scene" => true,
         "integrator" => t.contains_key("integrators"),

@@ -23,6 +23,23 @@ pub fn stage_exr(path: &Path, image: &Image, meta: &Metadata) -> Result<Staged> 
 /// [`stage_exr`] with extra channels (name, one value per pixel): AOV layers such as
 /// `albedo.R` or `Z`.
 pub fn stage_exr_with(path: &Path, image: &Image, meta: &Metadata, extra: Vec<(String, Vec<f32>)>) -> Result<Staged> {
+    stage(path, |w| encode(w, path, image, meta, extra))
+}
+
+/// [`write_exr`] into `w` (any seekable writer; `path` names it in errors), without staging.
+pub fn write_exr_to(w: impl std::io::Write + std::io::Seek, path: &Path, image: &Image, meta: &Metadata) -> Result<()> {
+    encode(w, path, image, meta, Vec::new())
+}
+
+/// The one EXR encoder: `extra` channels, RGB, the variance layer when present, and `meta`
+/// as `zvidpt.<key>` text attributes.
+fn encode(
+    w: impl std::io::Write + std::io::Seek,
+    path: &Path,
+    image: &Image,
+    meta: &Metadata,
+    extra: Vec<(String, Vec<f32>)>,
+) -> Result<()> {
     let size = (image.width as usize, image.height as usize);
     let mut channels: Vec<AnyChannel<FlatSamples>> = Vec::new();
     for (name, values) in extra {
@@ -46,24 +63,6 @@ pub fn stage_exr_with(path: &Path, image: &Image, meta: &Metadata, extra: Vec<(S
         attributes.other.insert(utf8_text(&format!("zvidpt.{k}")), AttributeValue::Text(utf8_text(v)));
     }
     attributes.other.insert(utf8_text("zvidpt.spp"), AttributeValue::Text(utf8_text(&image.spp.to_string())));
-    let layer = Layer::new(size, attributes, Encoding::SMALL_LOSSLESS, AnyChannels::sort(channels.into()));
-    let exr_image = exr::image::Image::from_layer(layer);
-    stage(path, |w| {
-        exr_image.write().to_buffered(w).map_err(|e| Error::Image { path: path.to_path_buf(), message: e.to_string() })
-    })
-}
-
-/// [`write_exr`] into `w` (any seekable writer; `path` names it in errors), without staging.
-pub fn write_exr_to(w: impl std::io::Write + std::io::Seek, path: &Path, image: &Image, meta: &Metadata) -> Result<()> {
-    let size = (image.width as usize, image.height as usize);
-    let channels: Vec<AnyChannel<FlatSamples>> = (0..3)
-        .map(|c| AnyChannel::new(RGB[c], FlatSamples::F32(image.pixels.iter().map(|p| p[c]).collect())))
-        .collect();
-    let mut attributes = LayerAttributes::named("");
-    attributes.layer_name = None;
-    for (k, v) in &meta.entries {
-        attributes.other.insert(utf8_text(&format!("zvidpt.{k}")), AttributeValue::Text(utf8_text(v)));
-    }
     let layer = Layer::new(size, attributes, Encoding::SMALL_LOSSLESS, AnyChannels::sort(channels.into()));
     exr::image::Image::from_layer(layer)
         .write()

@@ -80,13 +80,9 @@ pub(crate) fn trace_volume_path<A: Accel>(
                         let p = m.phase(wi, dir);
                         (Vec3A::splat(p), p)
                     });
-                if bounce >= rr_depth {
-                    let albedo = m.sigma_s / m.sigma_t().max(Vec3A::splat(f32::MIN_POSITIVE));
-                    let q = survival_probability(albedo);
-                    if rng.next_f32() >= q {
-                        break;
-                    }
-                    throughput /= q;
+                let albedo = m.sigma_s / m.sigma_t().max(Vec3A::splat(f32::MIN_POSITIVE));
+                if bounce >= rr_depth && !survives(albedo, &mut throughput, rng) {
+                    break;
                 }
                 let (dir, pdf) = m.sample_phase(wi, rng.next_2d());
                 previous = Some(Previous { at, pdf, mis: weigh });
@@ -137,27 +133,35 @@ pub(crate) fn trace_volume_path<A: Accel>(
         let wi = frame.to_local(si.wo);
         let weigh = mis.at(&si.material);
         let at = Receiver { x: si.p, n: si.n, strategy: nee_strategy(ctx.light_sampling, &si) };
+        let interface = scene.medium_interface(si.prim);
         if !si.material.bsdf.is_delta() {
-            let interface = scene.medium_interface(si.prim);
             radiance += throughput * surface_light(ctx, &si, &frame, wi, &at, weigh, medium, interface, rng, scratch);
         }
-        if bounce >= rr_depth {
-            let q = survival_probability(albedo);
-            if rng.next_f32() >= q {
-                break;
-            }
-            throughput /= q;
+        if bounce >= rr_depth && !survives(albedo, &mut throughput, rng) {
+            break;
         }
         let Some(s) = sample_bsdf(&si, &frame, wi, rng) else {
             break;
         };
         throughput *= s.weight;
         previous = (!s.delta).then_some(Previous { at, pdf: s.pdf, mis: weigh });
-        medium = scene.medium_interface(si.prim).after(si.ng, s.dir, medium);
+        medium = interface.after(si.ng, s.dir, medium);
         ray = si.spawn_ray(s.dir);
         bounce += 1;
     }
     radiance
+}
+
+/// Russian roulette by `albedo`: whether the path goes on (its throughput then divided by
+/// the survival probability).
+#[inline]
+fn survives(albedo: Vec3A, throughput: &mut Vec3A, rng: &mut SampleStream) -> bool {
+    let q = survival_probability(albedo);
+    if rng.next_f32() >= q {
+        return false;
+    }
+    *throughput /= q;
+    true
 }
 
 /// NEE at surface vertex `si` (BSDF in `frame`, `wi` the local direction to the viewer),
@@ -177,9 +181,7 @@ fn surface_light<A: Accel>(
     scratch: &mut Scratch,
 ) -> Vec3A {
     let bsdf = &si.material.bsdf;
-    let origin_of = |dir: Vec3A| offset_ray_origin(si.p, si.p_err, si.ng, dir);
-    let light = draw_light(ctx, at, rng);
-    let Some(light) = light else { return Vec3A::ZERO };
+    let Some(light) = draw_light(ctx, at, rng) else { return Vec3A::ZERO };
     let dir = if light.infinite { light.p } else { (light.p - si.p).normalize_or_zero() };
     // Opaque surfaces reflect only on the side they are seen from.
     if !bsdf.transmits() && si.n.dot(dir) <= 0.0 {
@@ -194,7 +196,8 @@ fn surface_light<A: Accel>(
         return Vec3A::ZERO;
     }
     let start = interface.after(si.ng, dir, medium);
-    let tr = transmittance(ctx.scene, ctx.accel, origin_of(dir), &light, start, scratch);
+    let origin = offset_ray_origin(si.p, si.p_err, si.ng, dir);
+    let tr = transmittance(ctx.scene, ctx.accel, origin, &light, start, scratch);
     finish(f, tr, &light, mis, || bsdf.pdf(wi, local))
 }
 
