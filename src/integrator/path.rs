@@ -89,11 +89,29 @@ impl Integrator for PathTracer {
             return super::volume::trace_volume_path(ctx, pixel, rng, scratch, r, m);
         }
         match (self.mis != Mis::All && ctx.lambertian_only, ctx.max_depth != u32::MAX) {
-            (true, false) => trace_path::<A, true, false>(ctx, pixel, rng, scratch, r, m, sample_bsdf),
+            (true, false) => trace_path::<A, true, false>(ctx, pixel, rng, scratch, r, m, sample_lambertian),
             (false, false) => general_path::<A, false>(ctx, pixel, rng, scratch, r, m),
             (_, true) => general_path::<A, true>(ctx, pixel, rng, scratch, r, m),
         }
     }
+}
+
+/// [`sample_bsdf`] where every surface is Lambertian (the `NEE_ONLY` loop): cosine sampling,
+/// always inlined, without the branch to the general sampler.
+#[inline(always)]
+fn sample_lambertian(si: &SurfaceInteraction, frame: &Frame, _: Vec3A, rng: &mut SampleStream) -> Option<Scatter> {
+    let rho = si.material.lambertian().unwrap_or(Vec3A::ZERO);
+    let wo = crate::geometry::warp::cosine_hemisphere(rng.next_2d());
+    if wo.z <= 0.0 {
+        return None;
+    }
+    let dir = frame.to_world(wo);
+    si.consistent(dir, wo.z).then_some(Scatter {
+        dir,
+        weight: rho,
+        pdf: wo.z * std::f32::consts::FRAC_1_PI,
+        delta: false,
+    })
 }
 
 /// [`trace_path`] with BSDF sampling, any material, bounded or not.
@@ -141,7 +159,7 @@ pub(crate) fn trace_path<A: Accel, const NEE_ONLY: bool, const BOUNDED: bool>(
     let Some(hit) = ctx.accel.intersect(&ray) else {
         return ctx.scene.lights.environment(ray.dir);
     };
-    let mut si = ctx.scene.interaction(&ray, &hit);
+    let mut si = if NEE_ONLY { ctx.scene.interaction_inline(&ray, &hit) } else { ctx.scene.interaction(&ray, &hit) };
     let mut radiance = si.emitted();
     let mut throughput = Vec3A::ONE;
     // Light reaching a vertex (by NEE or by the next direction) ends a path of `bounce + 2`
@@ -190,7 +208,7 @@ pub(crate) fn trace_path<A: Accel, const NEE_ONLY: bool, const BOUNDED: bool>(
             }
             break;
         };
-        let next = ctx.scene.interaction(&ray, &hit);
+        let next = if NEE_ONLY { ctx.scene.interaction_inline(&ray, &hit) } else { ctx.scene.interaction(&ray, &hit) };
         // (Tested under `!NEE_ONLY` itself: a SIMD compare with zero is not folded away.)
         let emitted = if NEE_ONLY { Vec3A::ZERO } else { next.emitted() };
         if !NEE_ONLY && emitted != Vec3A::ZERO {

@@ -470,6 +470,14 @@ impl Scene {
     #[inline]
     #[must_use]
     pub fn interaction(&self, ray: &Ray, hit: &Hit) -> SurfaceInteraction {
+        self.interaction_inline(ray, hit)
+    }
+
+    /// [`Self::interaction`], always inlined: for the path tracer's tightest loop, where the
+    /// call and the record's trip through memory cost more than the work.
+    #[inline(always)]
+    #[must_use]
+    pub(crate) fn interaction_inline(&self, ray: &Ray, hit: &Hit) -> SurfaceInteraction {
         let v = &self.triangles[hit.prim as usize];
         let b = [1.0 - hit.u - hit.v, hit.u, hit.v];
         let p = v[0] * b[0] + v[1] * b[1] + v[2] * b[2];
