@@ -29,6 +29,8 @@ fn variants(base: &LearnedSettings) -> Vec<(&'static str, LearnedSettings)> {
         ("zvidpt", base.clone()),
         ("zvidpt --roulette q", LearnedSettings { roulette: Roulette::Q, ..base.clone() }),
         ("zvidpt --defensive 0.5", LearnedSettings { defensive: 0.5, ..base.clone() }),
+        // Roulette without splitting, which the probe picks where splitting measured worse.
+        ("zvidpt --max-split 1", LearnedSettings { max_split: 1, ..base.clone() }),
         (
             "jensen --learned-guide",
             LearnedSettings { roulette: Roulette::Albedo, control_variate: false, ..base.clone() },
@@ -152,4 +154,6 @@ fn learned_walk_falls_back_to_path_where_it_loses() {
     render_bvh(&scene_at("cornell-paper", 32, 24), &mut learned, 256, 3);
     let choice = learned.choice.expect("the training compared the walk with path");
     assert!(!choice.fell_back, "{choice:?}");
+    // The walk kept is the better measured of splitting and roulette alone.
+    assert!(choice.learned <= choice.unsplit && (choice.split || choice.learned == choice.unsplit), "{choice:?}");
 }

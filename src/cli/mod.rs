@@ -250,7 +250,8 @@ pub struct PhotonArgs {
     pub roulette_cv: Switch,
     /// zvidpt and jensen --learned-guide on: measure the path tracer during training (an
     /// 8-spp probe) and let it render the rest where the learned walk's variance times cost
-    /// per sample is higher (on), or always keep the learned walk (off).
+    /// per sample is higher (on), or always keep the learned walk (off). With `on`, zvidpt's
+    /// walk is also probed without splitting, and splits only where that measured no better.
     #[arg(long, value_enum, default_value_t = Switch::On)]
     pub fallback: Switch,
     /// zvidpt: lowest survival probability of the weight window (bounds the weight a

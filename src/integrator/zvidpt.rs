@@ -160,6 +160,9 @@ pub struct LearnedZvidpt {
     pub choice: Option<Choice>,
     /// The path tracer that renders instead, when the learned walk lost ([`Choice`]).
     path: Option<PathTracer>,
+    /// Whether walks split (up to `max_split` branches) or only roulette: split unless the
+    /// probe found the walk more efficient without ([`Choice::split`]).
+    split: bool,
 }
 
 /// The learned walk against the path tracer, measured during and at the end of training: a
@@ -179,8 +182,14 @@ pub struct Choice {
     /// Variance × rays per sample: the path probe's, the learned walk's last measured (its
     /// rays weighed).
     pub path: f64,
-    /// The same for the learned walk.
+    /// The same for the learned walk: the better of splitting and not.
     pub learned: f64,
+    /// The learned walk's figure without splitting (the same as with it where it cannot
+    /// split: `--max-split 1`).
+    pub unsplit: f64,
+    /// Whether the learned walk splits: its figure with splitting was no higher than
+    /// without.
+    pub split: bool,
     /// Training samples per pixel before the probe.
     pub after_spp: u32,
     /// Whether the path tracer renders the rest.
@@ -246,7 +255,7 @@ impl LearnedZvidpt {
     /// An integrator that has not trained yet (its pre-pass trains).
     #[must_use]
     pub fn new(settings: LearnedSettings) -> Self {
-        Self { settings, guide: None, iterations: Vec::new(), prior: None, choice: None, path: None }
+        Self { settings, guide: None, iterations: Vec::new(), prior: None, choice: None, path: None, split: true }
     }
 
     /// Training samples actually spent.
@@ -284,7 +293,8 @@ impl LearnedZvidpt {
                     if r.is_nan() {
                         1.0
                     } else if r < lower || r > s * lower {
-                        r.clamp(self.settings.min_survival, self.settings.max_split as f32)
+                        let most = if self.split { self.settings.max_split } else { 1 };
+                        r.clamp(self.settings.min_survival, most as f32)
                     } else {
                         1.0
                     }
@@ -390,9 +400,26 @@ impl LearnedZvidpt {
         margin: f64,
     ) -> Choice {
         let (v_path, rays_path) = *path_probe.get_or_insert_with(|| self.probe(ctx, path, None, seed));
-        let (v_learned, rays_learned) = self.probe(ctx, path, Some(guide), seed);
-        let (p, l) = (v_path * rays_path, v_learned * rays_learned * LEARNED_RAY_COST);
-        let c = Choice { path: p, learned: l, after_spp: self.training_spp(), fell_back: l > margin * p };
+        let figure = |(v, rays): (f64, f64)| v * rays * LEARNED_RAY_COST;
+        self.split = true;
+        let split = figure(self.probe(ctx, path, Some(guide), seed));
+        let unsplit = if self.settings.max_split > 1 && self.settings.roulette == Roulette::Window {
+            self.split = false;
+            let u = figure(self.probe(ctx, path, Some(guide), seed));
+            self.split = split <= u;
+            u
+        } else {
+            split
+        };
+        let (p, l) = (v_path * rays_path, split.min(unsplit));
+        let c = Choice {
+            path: p,
+            learned: l,
+            unsplit,
+            split: self.split,
+            after_spp: self.training_spp(),
+            fell_back: l > margin * p,
+        };
         self.choice = Some(c);
         c
     }
@@ -819,6 +846,7 @@ impl Integrator for LearnedZvidpt {
         let mut prior = PriorSamples::new(width, height);
         self.choice = None;
         self.path = None;
+        self.split = true;
         let mut path_probe = None;
         let path = PathTracer { mis: self.settings.mis, ..PathTracer::default() };
         for k in 0..16u32 {
@@ -878,11 +906,18 @@ impl Integrator for LearnedZvidpt {
         let training: Vec<String> = self.iterations.iter().map(|i| format!("{}", i.spp)).collect();
         let choice = match self.choice {
             Some(c) => format!(
-                "; walk probe ({PROBE_SPP} spp, variance x rays per sample) after {} training spp: learned {:.3e}, path {:.3e}: {}",
+                "; walk probe ({PROBE_SPP} spp, variance x rays per sample) after {} training spp: learned {:.3e} (without splitting {:.3e}), path {:.3e}: {}",
                 c.after_spp,
                 c.learned,
+                c.unsplit,
                 c.path,
-                if c.fell_back { "path renders the rest" } else { "learned walk kept" }
+                if c.fell_back {
+                    "path renders the rest"
+                } else if c.split {
+                    "learned walk kept"
+                } else {
+                    "learned walk kept, without splitting"
+                }
             ),
             None => String::new(),
         };
