@@ -34,6 +34,9 @@ pub enum Error {
     /// A ray-tracing backend failed or is not available in this build.
     #[error("{0}")]
     Backend(String),
+    /// The denoiser (Open Image Denoise) is missing or failed.
+    #[error("{0}")]
+    Denoiser(String),
     /// SIGINT or SIGTERM stopped the work; what was kept (a checkpoint) is said in `message`.
     #[error("{message}")]
     Interrupted { signal: i32, message: String },

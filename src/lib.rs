@@ -22,33 +22,55 @@
 //! assert_eq!(stats.spp, 4);
 //! # Ok::<(), zvidpt::Error>(())
 //! ```
-// The only unsafe code lives in `accel::embree` (feature `embree`); everywhere else it is
-// forbidden. `forbid` cannot be relaxed by a child module, hence `deny` when Embree is built.
-#![cfg_attr(not(feature = "embree"), forbid(unsafe_code))]
-#![cfg_attr(feature = "embree", deny(unsafe_code))]
+// The only unsafe code lives in the two FFI modules, `accel::embree` (feature `embree`) and
+// `denoise`'s Open Image Denoise loader, which allow it; every other module forbids it
+// (`forbid` cannot be relaxed below, hence `deny` at the root).
+#![deny(unsafe_code)]
 #![deny(unsafe_op_in_unsafe_fn)]
 
 pub mod accel;
+#[forbid(unsafe_code)]
 pub mod batch;
+#[forbid(unsafe_code)]
 pub mod cli;
+#[forbid(unsafe_code)]
 pub mod color;
+#[forbid(unsafe_code)]
 pub mod converge;
+pub mod denoise;
+#[forbid(unsafe_code)]
 pub mod error;
+#[forbid(unsafe_code)]
 pub mod film;
+#[forbid(unsafe_code)]
 pub mod fuzzing;
+#[forbid(unsafe_code)]
 pub mod geometry;
+#[forbid(unsafe_code)]
 pub mod integrator;
+#[forbid(unsafe_code)]
 pub mod io;
+#[forbid(unsafe_code)]
 pub mod learned_guide;
+#[forbid(unsafe_code)]
 pub mod light;
+#[forbid(unsafe_code)]
 pub mod material;
+#[forbid(unsafe_code)]
 pub mod medium;
+#[forbid(unsafe_code)]
 pub mod photon;
+#[forbid(unsafe_code)]
 pub mod plot;
+#[forbid(unsafe_code)]
 pub mod render;
+#[forbid(unsafe_code)]
 pub mod sampler;
+#[forbid(unsafe_code)]
 pub mod scene;
+#[forbid(unsafe_code)]
 pub mod stats;
+#[forbid(unsafe_code)]
 pub mod texture;
 
 pub use error::{Error, Result};

@@ -410,3 +410,55 @@ fn every_shipped_scene_renders() {
     }
     assert!(count >= 9, "only {count} shipped scenes found");
 }
+
+/// `zvidpt denoise` never writes over its input, `render --denoise` is refused on a part;
+/// where Open Image Denoise is installed, `render --denoise` adds the `denoised` layers and the
+/// `-denoised` PNG and leaves the image itself as a render without it writes it.
+#[test]
+fn denoise_outputs_beside_the_noisy_image() {
+    let d = scratch("denoise");
+    let noisy = d.join("noisy.exr");
+    let base = [
+        "render",
+        &repo("scenes/cornell-paper"),
+        "--spp",
+        "4",
+        "--resolution",
+        "32x24",
+        "--seed",
+        "1",
+        "-q",
+        "--aov",
+        "albedo,normal",
+    ];
+    let out = zvidpt(&[&base[..], &["-o", s(&noisy)]].concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let before = std::fs::read(&noisy).unwrap();
+    let out = zvidpt(&["denoise", s(&noisy), "-o", s(&noisy)]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.lines().count() == 1 && err.contains("input"), "{err}");
+    assert_eq!(std::fs::read(&noisy).unwrap(), before, "the noisy image was touched");
+    let out = zvidpt(&[&base[..], &["--samples", "0..2", "--denoise", "-o", s(&d.join("p.zvp"))]].concat());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--denoise"), "{err}");
+
+    if zvidpt::denoise::Denoiser::load(Some(1)).is_err() {
+        assert!(std::env::var_os("ZVIDPT_REQUIRE_OIDN").is_none(), "Open Image Denoise is required here");
+        eprintln!("skipped the denoising half: Open Image Denoise is not installed");
+        return;
+    }
+    let both = d.join("both.exr");
+    let out = zvidpt(&[&base[..], &["--denoise", "-o", s(&both)]].concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("denoised in"));
+    assert!(d.join("both-denoised.png").is_file() && d.join("both.png").is_file());
+    let (image, meta, layers) =
+        zvidpt::film::read_exr_with(&both, &["denoised.R", "denoised.G", "denoised.B"]).unwrap();
+    assert!(layers.iter().all(Option::is_some) && meta.get("denoiser").is_some());
+    let (plain, _) = zvidpt::film::read_exr(&noisy).unwrap();
+    assert_eq!(image.pixels, plain.pixels, "--denoise changed the image itself");
+    let out = zvidpt(&["denoise", s(&noisy), "-o", s(&d.join("d.exr"))]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("guided by albedo+normal"));
+    let _ = std::fs::remove_dir_all(&d);
+}

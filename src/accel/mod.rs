@@ -1,6 +1,8 @@
 //! Ray-tracing backends behind one trait. The backend is picked once, at the top
 //! ([`with_backend`]); everything below is generic over [`Accel`] and monomorphised.
+#[forbid(unsafe_code)]
 mod brute;
+#[forbid(unsafe_code)]
 mod bvh;
 // One of the two places the `embree` feature appears (the other is `with_backend`).
 #[cfg(feature = "embree")]

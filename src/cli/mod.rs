@@ -39,6 +39,7 @@ macro_rules! warn {
 
 mod batch;
 mod converge;
+mod denoise;
 mod diff;
 pub mod help_doc;
 mod info;
@@ -51,6 +52,8 @@ pub use batch::BatchArgs;
 use batch::{check_batch_options, run_batch};
 pub use converge::ConvergeArgs;
 use converge::{check_converge_options, run_converge};
+pub use denoise::DenoiseArgs;
+use denoise::run_denoise;
 pub use diff::DiffArgs;
 use diff::run_diff;
 pub use info::InfoArgs;
@@ -101,6 +104,9 @@ pub enum Command {
     /// Merge partial renders of sample ranges (`render --samples A..B`) into one image,
     /// bit-identical to a single render of all the samples.
     Merge(MergeArgs),
+    /// Denoise an image with Intel Open Image Denoise (guided by its albedo and normal
+    /// layers) into a new file; the noisy estimate is left as it is.
+    Denoise(DenoiseArgs),
     /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
     Completions(CompletionsArgs),
     /// Print or install the manual pages (zvidpt.1 and one per subcommand).
@@ -487,6 +493,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Converge(args) => run_converge(&args),
         Command::Batch(args) => run_batch(&args),
         Command::Merge(args) => run_merge(&args),
+        Command::Denoise(args) => run_denoise(&args),
         Command::Completions(args) => run_completions(&args),
         Command::Man(args) => run_man(&args),
     }
@@ -515,7 +522,12 @@ pub fn validate(cli: &Cli) -> Result<()> {
         Command::Converge(a) => check_converge_options(a),
         Command::Reference(a) => check_reference_options(a),
         Command::Batch(a) => check_batch_options(a),
-        Command::Diff(_) | Command::Info(_) | Command::Merge(_) | Command::Completions(_) | Command::Man(_) => Ok(()),
+        Command::Diff(_)
+        | Command::Info(_)
+        | Command::Merge(_)
+        | Command::Denoise(_)
+        | Command::Completions(_)
+        | Command::Man(_) => Ok(()),
     }
 }
 

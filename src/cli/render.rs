@@ -53,6 +53,12 @@ pub struct RenderArgs {
     /// count), variance (variance.R/G/B, always written). From 16 jittered camera rays per pixel.
     #[arg(long, value_enum, value_delimiter = ',')]
     pub aov: Vec<Aov>,
+    /// Also denoise the image with Intel Open Image Denoise (`RT` filter guided by the first
+    /// hit's albedo and normal, prefiltered): written as the EXR's `denoised.R/G/B` layers and
+    /// as a second PNG (the PNG's name + `-denoised`). The image itself stays the noisy,
+    /// unbiased estimate. Needs the library: `pip install pyoidn`, or OIDN_DIR.
+    #[arg(long)]
+    pub denoise: bool,
     /// Checkpoint file: the render's sums so far, rewritten atomically every
     /// --checkpoint-every seconds and on SIGINT/SIGTERM, removed when the render is done
     /// [default: the EXR's path + .checkpoint].
@@ -91,7 +97,18 @@ pub enum Aov {
     Spp,
 }
 
+/// The denoised PNG beside `png`: its name + `-denoised`.
+fn denoised_name(png: &Path) -> PathBuf {
+    let stem = png.file_stem().map_or_else(|| "image".into(), |s| s.to_string_lossy().into_owned());
+    png.with_file_name(format!("{stem}-denoised.png"))
+}
+
 pub(super) fn check_render_options(args: &RenderArgs) -> Result<()> {
+    if args.samples.is_some() && args.denoise {
+        return Err(Error::InvalidOption(
+            "--denoise applies to a whole image: merge the parts, then `zvidpt denoise` the merged image (with --aov albedo,normal in the merge)".into(),
+        ));
+    }
     if args.samples.is_some() && args.aov.iter().any(|a| *a != Aov::Variance) {
         return Err(Error::InvalidOption(
             "--aov layers are written by `zvidpt merge`'s image, not by a --samples part".into(),
@@ -166,6 +183,10 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     if let Some(p) = &png {
         outputs.push(("PNG", p.as_path()));
     }
+    let denoised_png = png.as_deref().filter(|_| args.denoise).map(denoised_name);
+    if let Some(p) = &denoised_png {
+        outputs.push(("denoised PNG", p.as_path()));
+    }
     let checkpoint_path = checkpoint_path(args);
     if let Some(p) = &checkpoint_path {
         outputs.push(("checkpoint", p.as_path()));
@@ -223,9 +244,11 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         progress_json: args.progress_json,
         checkpoint,
     };
+    // The denoiser is found before the render, not after it.
+    let denoiser = if args.denoise { Some(crate::denoise::Denoiser::load(args.machine.threads)?) } else { None };
     let integrator = args.integrator;
     let want = |a: Aov| args.aov.contains(&a);
-    let first_hit = want(Aov::Albedo) || want(Aov::Normal) || want(Aov::Depth);
+    let first_hit = want(Aov::Albedo) || want(Aov::Normal) || want(Aov::Depth) || args.denoise;
     let (image, stats, backend, aovs) = render_scene_with_aovs(
         &scene,
         &args.photon.integrator(integrator),
@@ -252,6 +275,17 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     if want(Aov::Spp) {
         layers.push(("spp".into(), vec![image.spp as f32; image.pixels.len()]));
     }
+    let denoised = match (&denoiser, &aovs) {
+        (Some(d), Some(a)) => {
+            Some(d.denoise(image.width, image.height, &image.pixels, Some(&a.albedo), Some(&a.normal))?)
+        }
+        _ => None,
+    };
+    if let Some(d) = &denoised {
+        for (c, name) in ["R", "G", "B"].iter().enumerate() {
+            layers.push((format!("denoised.{name}"), d.pixels.iter().map(|v| v[c]).collect()));
+        }
+    }
 
     // What makes the render this render (the checkpoint's identity: every setting that
     // changes pixels), then what this run measured.
@@ -269,6 +303,13 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         meta.push("training_spp_in_image", stats.prior_spp);
     }
     meta.push("rays", stats.rays);
+    if let Some(d) = &denoised {
+        meta.push(
+            "denoiser",
+            format!("Open Image Denoise RT, hdr, cleanAux, guided by {}: layers denoised.R/G/B", d.guided_by),
+        );
+        meta.push("denoise_seconds", format!("{:.3}", d.seconds));
+    }
     if let Some(key) = &args.job_key {
         meta.push("job", key);
     }
@@ -285,6 +326,10 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     }];
     if let Some(p) = &png {
         staged.push(film::stage_png(p, &image, args.exposure)?);
+    }
+    if let (Some(p), Some(d)) = (&denoised_png, &denoised) {
+        let denoised_image = film::Image { pixels: d.pixels.clone(), variance: None, ..image.clone() };
+        staged.push(film::stage_png(p, &denoised_image, args.exposure)?);
     }
     film::commit(staged)?;
     // The image holds every sample now: the checkpoint has served.
@@ -336,6 +381,15 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
                 stats.checkpoints,
                 stats.checkpoint_seconds,
                 100.0 * stats.checkpoint_seconds / stats.seconds.max(1e-9)
+            );
+        }
+        if let Some(d) = &denoised {
+            out!(
+                "denoised in {:.2} s (Open Image Denoise, guided by {}; {}) -> layers denoised.R/G/B{}",
+                d.seconds,
+                d.guided_by,
+                d.library.display(),
+                denoised_png.as_ref().map_or(String::new(), |p| format!(", {}", p.display()))
             );
         }
         Ok(())
@@ -420,6 +474,7 @@ mod tests {
         "threads",
         "tile-size",
         "aov",
+        "denoise",
         "checkpoint",
         "checkpoint-every",
         "no-checkpoint",

@@ -88,8 +88,26 @@ pub fn read_exr(path: &Path) -> Result<(Image, Metadata)> {
     read_exr_from(std::io::BufReader::new(file), path)
 }
 
+/// A channel's values at full resolution, row-major, if the file has it.
+pub type Channel = Option<Vec<f32>>;
+
+/// [`read_exr`], also returning the channels named in `extra` (e.g. `albedo.R`) where the
+/// file has them at full resolution.
+pub fn read_exr_with(path: &Path, extra: &[&str]) -> Result<(Image, Metadata, Vec<Channel>)> {
+    let file = crate::io::open_regular(path, "EXR image")?;
+    read_exr_channels(std::io::BufReader::new(file), path, extra)
+}
+
 /// [`read_exr`] from any seekable reader (`path` names it in errors).
-pub fn read_exr_from(mut reader: impl std::io::Read + std::io::Seek, path: &Path) -> Result<(Image, Metadata)> {
+pub fn read_exr_from(reader: impl std::io::Read + std::io::Seek, path: &Path) -> Result<(Image, Metadata)> {
+    read_exr_channels(reader, path, &[]).map(|(image, meta, _)| (image, meta))
+}
+
+fn read_exr_channels(
+    mut reader: impl std::io::Read + std::io::Seek,
+    path: &Path,
+    extra: &[&str],
+) -> Result<(Image, Metadata, Vec<Channel>)> {
     let err = |message: String| Error::Image { path: path.to_path_buf(), message };
     // The headers first: a file may claim any size, and the pixels are allocated from it.
     let headers = exr::meta::MetaData::read_from_buffered(&mut reader, false).map_err(|e| err(e.to_string()))?;
@@ -141,7 +159,8 @@ pub fn read_exr_from(mut reader: impl std::io::Read + std::io::Seek, path: &Path
         }
     }
     let spp = meta.get("spp").and_then(|s| s.parse().ok()).unwrap_or(0);
-    Ok((Image { width: w as u32, height: h as u32, pixels, variance, spp }, meta))
+    let extra = extra.iter().map(|n| find(n)).collect();
+    Ok((Image { width: w as u32, height: h as u32, pixels, variance, spp }, meta, extra))
 }
 
 #[cfg(test)]

@@ -12,7 +12,7 @@ pub use atomic::{
     Staged, check_destination, check_outputs, check_writable, commit, path_key, remove_pending_files, same_file, stage,
     write_atomically,
 };
-pub use exr_io::{read_exr, read_exr_from, stage_exr, stage_exr_with, write_exr, write_exr_to};
+pub use exr_io::{read_exr, read_exr_from, read_exr_with, stage_exr, stage_exr_with, write_exr, write_exr_to};
 pub use metrics::{
     Metrics, TRIM_FRACTION, error_map_png, mean_image, metrics, metrics_of_rows, reference_noise, split_by_brightness,
     trimmed,
