@@ -2,7 +2,8 @@
 //! tasks render sample ranges (`zvidpt render --samples A..B`, each keeping a checkpoint, so a
 //! requeued task resumes), and a merge job that runs once every task succeeded
 //! (`--dependency=afterok`) and writes the output, bit-identical to one render on one machine.
-//! A job with a time budget or first-hit AOVs cannot be split by samples: it is one task.
+//! A job with a time budget, a noise target or first-hit AOVs cannot be split by samples: it
+//! is one task.
 //!
 //! Each job's scripts, part files and Slurm logs live in `OUTPUT.slurm/`; its job ids are kept
 //! in `OUTPUT.slurm/submitted`, so that a rerun does not submit again what is still queued,
@@ -54,7 +55,7 @@ pub fn split_of(job: &Job, tasks: u32) -> Result<Split> {
         return Err(Error::InvalidOption(format!("{}: a job with `samples` is already a part", job.origin)));
     }
     let aov = flag_value(job, "--aov").is_some_and(|v| v.split(',').any(|a| a.trim() != "variance"));
-    if job.args.iter().any(|a| a == "--time") || aov {
+    if job.args.iter().any(|a| a == "--time" || a == "--noise-target") || aov {
         return Ok(Split::Whole);
     }
     let spp = match flag_value(job, "--spp") {

@@ -155,6 +155,7 @@ impl ConvergeArgs {
             tile_size: 32,
             progress: false,
             light_sampling: self.photon.light_sampling,
+            noise_target: None,
         }
     }
 }

@@ -71,6 +71,7 @@ pub(super) fn run_reference(args: &ReferenceArgs) -> Result<()> {
         tile_size: 32,
         progress: !args.quiet,
         light_sampling: LightSampling::default(),
+        noise_target: None,
     };
     let photon = PhotonArgs::default_for_path();
     let (image, stats, backend) =

@@ -35,6 +35,15 @@ pub struct RenderArgs {
     /// Time budget in seconds: render whole passes until it is used up.
     #[arg(long, allow_negative_numbers = true)]
     pub time: Option<f64>,
+    /// Stop once the image's estimated relative error (the root of its predicted relMSE:
+    /// each pixel's variance of the mean over its squared value + 0.01, averaged) is at most
+    /// E (0.05: 5%), judged after every pass from --min-spp on; with --spp or --time, whichever
+    /// comes first. Without either, the render runs until it gets there.
+    #[arg(long, value_name = "E", allow_negative_numbers = true)]
+    pub noise_target: Option<f64>,
+    /// Samples per pixel before the noise target is first judged.
+    #[arg(long, default_value_t = 16, requires = "noise_target")]
+    pub min_spp: u32,
     /// Light-transport algorithm (`zvidpt` by default: far ahead of the path tracer on
     /// indirectly lit scenes, and it falls back to path tracing where its probe finds it
     /// losing; docs/results.md).
@@ -116,6 +125,17 @@ pub(super) fn check_render_options(args: &RenderArgs) -> Result<()> {
     }
     if args.spp == Some(0) {
         return Err(Error::InvalidOption("--spp must be at least 1".into()));
+    }
+    if let Some(e) = args.noise_target {
+        if !(e.is_finite() && e > 0.0) {
+            return Err(Error::InvalidOption(format!("--noise-target must be a positive relative error, got {e}")));
+        }
+        if args.samples.is_some() {
+            return Err(Error::InvalidOption(
+                "--noise-target with --samples: the parts of one render would stop at different counts; render it whole"
+                    .into(),
+            ));
+        }
     }
     if !args.exposure.is_finite() {
         return Err(Error::InvalidOption("--exposure must be finite".into()));
@@ -229,7 +249,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         }
     }
     let settings = RenderSettings {
-        spp: args.spp.or(if args.time.is_some() {
+        spp: args.spp.or(if args.time.is_some() || args.noise_target.is_some() {
             None
         } else {
             Some(scene.render.spp.unwrap_or(crate::render::DEFAULT_SPP))
@@ -243,6 +263,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         samples: args.samples,
         progress_json: args.progress_json,
         checkpoint,
+        noise_target: args.noise_target.map(|error| crate::render::NoiseTarget { error, min_spp: args.min_spp }),
     };
     // The denoiser is found before the render, not after it.
     let denoiser = if args.denoise { Some(crate::denoise::Denoiser::load(args.machine.threads)?) } else { None };
@@ -303,6 +324,9 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         meta.push("training_spp_in_image", stats.prior_spp);
     }
     meta.push("rays", stats.rays);
+    if let Some((e, _)) = stats.noise {
+        meta.push("relative_error", format!("{e:.5}"));
+    }
     if let Some(d) = &denoised {
         meta.push(
             "denoiser",
@@ -383,6 +407,13 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
                 100.0 * stats.checkpoint_seconds / stats.seconds.max(1e-9)
             );
         }
+        if let (Some((e, met)), Some(target)) = (stats.noise, args.noise_target) {
+            out!(
+                "noise: estimated relative error {e:.4} after {} spp ({} the target {target})",
+                stats.spp,
+                if met { "meets" } else { "short of" }
+            );
+        }
         if let Some(d) = &denoised {
             out!(
                 "denoised in {:.2} s (Open Image Denoise, guided by {}; {}) -> layers denoised.R/G/B{}",
@@ -426,6 +457,10 @@ pub(super) fn render_identity(args: &RenderArgs, scene: &Scene) -> Metadata {
     meta.push("spp", args.spp.or(scene.render.spp).map_or("-".into(), |n| n.to_string()));
     meta.push("max_depth", scene.render.max_depth.map_or("-".into(), |n| n.to_string()));
     meta.push("time", args.time.map_or("-".into(), |t| t.to_string()));
+    if let Some(e) = args.noise_target {
+        meta.push("noise_target", e);
+        meta.push("min_spp", args.min_spp);
+    }
     meta.push("samples", args.samples.map_or("-".into(), |(a, b)| format!("{a}..{b}")));
     args.photon.describe(args.integrator, &mut meta);
     meta.push("version", crate::VERSION);
@@ -493,6 +528,8 @@ mod tests {
         ("spp", "path", "9"),
         ("samples", "path", "0..4"),
         ("time", "path", "3"),
+        ("noise-target", "path", "0.5"),
+        ("min-spp", "path", "3"),
         ("seed", "path", "7"),
         // (`auto` is Embree where it is compiled in: `bvh` is the other choice.)
         ("backend", "path", "bvh"),
@@ -563,10 +600,15 @@ mod tests {
             if *flag == "backend" && !crate::accel::EMBREE_AVAILABLE {
                 continue;
             }
-            let base_args = ["--spp", "8", "--integrator", integrator];
-            let base = identity(&base_args);
+            // (--min-spp means something only with a noise target.)
+            let base_args: &[&str] = if *flag == "min-spp" {
+                &["--spp", "8", "--integrator", integrator, "--noise-target", "0.5"]
+            } else {
+                &["--spp", "8", "--integrator", integrator]
+            };
+            let base = identity(base_args);
             let flag = format!("--{flag}");
-            let changed = identity(&with(&base_args, &flag, value));
+            let changed = identity(&with(base_args, &flag, value));
             assert_ne!(base, changed, "{flag} {value} ({integrator}) leaves the render's identity as it was");
         }
     }

@@ -230,6 +230,10 @@ pub const MIN_TRAINING_SPP: u32 = 7;
 /// measured 1.12 (Bitterli's coffee), 1.22 (veach-mis), ... at 2 threads.
 pub const LEARNED_RAY_COST: f64 = 1.2;
 
+/// Training iterations (1 + 2 + … + 16 = 31 spp, as a 64-spp render's) where the render has
+/// neither a sample count nor a time budget (it stops at a noise target).
+const UNBUDGETED_ITERATIONS: u32 = 5;
+
 /// Under a time budget, training iterations run while the next would end within this
 /// fraction of it.
 pub const TRAIN_FRACTION: f64 = 0.35;
@@ -865,7 +869,12 @@ impl Integrator for LearnedZvidpt {
                         break;
                     }
                 }
-                (None, None) => break,
+                // Neither (a render to a noise target alone): a 64-spp render's training.
+                (None, None) => {
+                    if k >= UNBUDGETED_ITERATIONS {
+                        break;
+                    }
+                }
             }
             let t = Instant::now();
             guide.begin_iteration();
