@@ -319,6 +319,34 @@ fn parts_are_not_images_and_depth_zero_warns() {
     assert!(o.status.success() && stderr(&o).contains("the image is black"), "{}", stderr(&o));
 }
 
+/// Training samples (which the image holds) above the render's requested total are refused,
+/// as are a noise target for a part and a nonsensical target.
+#[test]
+fn budgets_that_contradict_each_other_are_refused() {
+    let d = scene("budgets", LIGHT);
+    let out = d.join("o.exr");
+    let o = zvidpt(&["render", s(&d), "-o", s(&out), "-q", "--spp", "8", "--train-spp", "31"]);
+    fails_with(&o, "--train-spp 31 is more than --spp 8");
+    let o = zvidpt(&[
+        "render",
+        s(&d),
+        "-o",
+        s(&d.join("p.zvp")),
+        "-q",
+        "--spp",
+        "8",
+        "--samples",
+        "0..4",
+        "--noise-target",
+        "0.1",
+    ]);
+    fails_with(&o, "--noise-target with --samples");
+    for bad in ["0", "-1", "nan", "inf"] {
+        fails_with(&zvidpt(&["render", s(&d), "-o", s(&out), "-q", "--noise-target", bad]), "--noise-target must be");
+    }
+    assert!(!out.exists());
+}
+
 /// 500 spheres of 81,920 triangles each exceed the triangle cap: refused before any is
 /// tessellated, within 1 GB of address space (tessellating up to the cap took 4 GB, and
 /// under this limit aborted on a failed allocation).
@@ -495,4 +523,37 @@ fn a_missing_relative_scene_is_not_found_elsewhere() {
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(stderr(&o).contains("scenes/cornell-classic"), "{}", stderr(&o));
     assert!(files(&d).is_empty());
+}
+
+/// A texture or mesh file that cannot be read is reported where the scene names it: the
+/// pbrt-v4 or Mitsuba 3 file and line of its directive, the TOML file otherwise.
+#[test]
+fn missing_files_are_reported_where_the_scene_names_them() {
+    let d = scratch("missing-files");
+    let out = d.join("o.exr");
+    let head = "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" 45\nWorldBegin\n";
+    let light = "AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [1 1 1]\nShape \"sphere\" \"float radius\" 0.2\nAttributeEnd\n";
+    let texture = format!(
+        "{head}Texture \"t\" \"spectrum\" \"imagemap\" \"string filename\" \"missing.png\"\nMaterial \"diffuse\" \"texture reflectance\" \"t\"\nShape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"integer indices\" [0 1 2]\n{light}"
+    );
+    std::fs::write(d.join("texture.pbrt"), texture).unwrap();
+    fails_with(
+        &zvidpt(&["render", s(&d.join("texture.pbrt")), "-o", s(&out), "-q", "--spp", "1"]),
+        "texture.pbrt: line 4: texture",
+    );
+    std::fs::write(d.join("ply.pbrt"), format!("{head}{light}Shape \"plymesh\" \"string filename\" \"nope.ply\"\n"))
+        .unwrap();
+    fails_with(&zvidpt(&["render", s(&d.join("ply.pbrt")), "-o", s(&out), "-q", "--spp", "1"]), "ply.pbrt: line 8: ");
+    let xml = "<scene version=\"3.0.0\">\n<sensor type=\"perspective\"><film type=\"hdrfilm\"><integer name=\"width\" value=\"8\"/><integer name=\"height\" value=\"8\"/></film></sensor>\n<shape type=\"obj\">\n<string name=\"filename\" value=\"gone.obj\"/>\n</shape>\n</scene>\n";
+    std::fs::write(d.join("scene.xml"), xml).unwrap();
+    fails_with(&zvidpt(&["render", s(&d.join("scene.xml")), "-o", s(&out), "-q", "--spp", "1"]), "scene.xml: line 3: ");
+    let toml = format!(
+        "{}[textures.t]\ntype = \"bitmap\"\nfile = \"gone.png\"\n[materials.m]\ndiffuse_texture = \"t\"\n[[mesh]]\nobj = \"box.obj\"\nmaterial = \"m\"\n",
+        camera(8, 8)
+    );
+    std::fs::write(d.join("scene.toml"), toml).unwrap();
+    std::fs::write(d.join("box.obj"), LIGHT).unwrap();
+    std::fs::write(d.join("box.mtl"), MTL).unwrap();
+    fails_with(&zvidpt(&["render", s(&d), "-o", s(&out), "-q", "--spp", "1"]), "scene.toml: texture `t`: ");
+    assert!(!out.exists());
 }

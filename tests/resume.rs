@@ -150,7 +150,7 @@ fn sigterm_during_training_says_what_was_kept() {
     let dir = scratch("resume", "signal-training");
     let scene = scene();
     let out = dir.join("stopped.exr");
-    let mut args = render_args(&scene, "zvidpt", "64", &out);
+    let mut args = render_args(&scene, "zvidpt", "4096", &out);
     args.extend(["--train-spp", "4000", "--progress-json"]);
     let mut child = bin().args(&args).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
     let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();

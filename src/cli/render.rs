@@ -126,6 +126,16 @@ pub(super) fn check_render_options(args: &RenderArgs) -> Result<()> {
     if args.spp == Some(0) {
         return Err(Error::InvalidOption("--spp must be at least 1".into()));
     }
+    // The training's samples go into the image: more of them than the render asks for in all
+    // is a contradiction, not a budget.
+    if let (Some(t), Some(n)) = (args.photon.train_spp, args.spp)
+        && t > n
+        && matches!(args.integrator, IntegratorKind::Zvidpt | IntegratorKind::Jensen)
+    {
+        return Err(Error::InvalidOption(format!(
+            "--train-spp {t} is more than --spp {n}: training samples count towards the render's samples (default: half of them)"
+        )));
+    }
     if let Some(e) = args.noise_target {
         if !(e.is_finite() && e > 0.0) {
             return Err(Error::InvalidOption(format!("--noise-target must be a positive relative error, got {e}")));

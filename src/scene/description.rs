@@ -36,6 +36,11 @@ pub struct SceneDescription {
     /// the TOML format.
     #[serde(skip)]
     pub inline_meshes: Vec<InlineMesh>,
+    /// Where an imported scene's textures and mesh files were named (`texture NAME`, `mesh
+    /// FILE` → file and line), so that a file that cannot be read is reported there; not part
+    /// of the TOML format.
+    #[serde(skip)]
+    pub origins: std::collections::HashMap<String, (std::path::PathBuf, u32)>,
 }
 
 /// A triangle mesh written out in an imported scene file, already placed in the world.

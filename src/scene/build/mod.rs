@@ -102,6 +102,21 @@ impl Scene {
 type Textures = (Vec<Texture>, HashMap<String, u16>, Vec<PathBuf>, Vec<Option<glam::Affine2>>);
 
 /// The `[textures]` of a scene file, their indices by name, and the files they read.
+/// An error reading a file that a texture or mesh names (`key` in the description's origins;
+/// `what` the texture, or empty: the error names the file), reported where the scene file
+/// names it: an imported scene's file and line, or the TOML file. Other errors pass as they
+/// are.
+fn located(path: &Path, d: &SceneDescription, key: &str, what: &str, e: Error) -> Error {
+    if !matches!(e, Error::Io { .. } | Error::Image { .. } | Error::Mesh { .. }) {
+        return e;
+    }
+    let what = if what.is_empty() { String::new() } else { format!("{what}: ") };
+    match d.origins.get(key) {
+        Some((file, line)) => Error::InvalidScene { path: file.clone(), message: format!("line {line}: {what}{e}") },
+        None => invalid(path, format!("{what}{e}")),
+    }
+}
+
 fn textures_from(path: &Path, d: &SceneDescription) -> Result<Textures> {
     use super::description::{FilterDescription, TextureKind, WrapDescription};
     let (mut textures, mut ids, mut sources, mut maps) = (Vec::new(), HashMap::new(), Vec::new(), Vec::new());
@@ -196,9 +211,10 @@ fn textures_from(path: &Path, d: &SceneDescription) -> Result<Textures> {
                     Some(FilterDescription::Nearest) => Filter::Nearest,
                 };
                 let key = (file.clone(), t.raw.unwrap_or(false));
+                let here = |e: Error| located(path, d, &format!("texture {name}"), &format!("texture `{name}`"), e);
                 let bitmap = match decoded.remove(&key) {
                     Some(loaded) => {
-                        let b = loaded?;
+                        let b = loaded.map_err(here)?;
                         if uses.get(&key).is_some_and(|&n| n > 1) {
                             reused.insert(key, b.clone());
                         }
@@ -206,7 +222,7 @@ fn textures_from(path: &Path, d: &SceneDescription) -> Result<Textures> {
                     }
                     None => match reused.get(&key) {
                         Some(b) => b.clone(),
-                        None => Bitmap::load(&file, wrap, filter, key.1)?,
+                        None => Bitmap::load(&file, wrap, filter, key.1).map_err(here)?,
                     },
                 };
                 let mut bitmap = Bitmap { wrap, filter, ..bitmap };
@@ -381,7 +397,8 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
             if let Ok(ParsedMesh::Obj(obj)) = &file_parsed {
                 sources.extend(obj.mtl_files.iter().cloned());
             }
-            read_mesh(path, mesh, file, &mesh_path, file_parsed, &mut meshes)?;
+            read_mesh(path, mesh, file, &mesh_path, file_parsed, &mut meshes)
+                .map_err(|e| located(path, &d, &format!("mesh {file}"), "", e))?;
             if uses.get(&mesh_key).is_some_and(|&n| n > 1) {
                 read_before.insert(mesh_key, copy_geometry(&meshes.geometry, start));
             }

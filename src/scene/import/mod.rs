@@ -105,6 +105,7 @@ pub(crate) fn empty_description() -> SceneDescription {
             filter: None,
             medium: None,
         },
+        origins: std::collections::HashMap::new(),
         materials: BTreeMap::new(),
         textures: BTreeMap::new(),
         media: BTreeMap::new(),

@@ -187,14 +187,35 @@ fn min_entry_bytes(element: &ElementDef, binary: bool) -> usize {
 
 /// Parses the bytes of a PLY file. Errors name the line where the parser knows it.
 ///
+/// The PLY parser's message as one plain line: its first line (without the parser's own
+/// `Line N:`, which the caller gives) and the text it could not read, not the parser's nested
+/// debug dumps (`ParseError { location: LineCol { … } }`).
+fn plain_message(text: &str) -> String {
+    let mut lines = text.lines();
+    let first = lines.next().unwrap_or("").trim();
+    let first = match first.strip_prefix("Line ").and_then(|rest| rest.split_once(": ")) {
+        Some((n, rest)) if n.chars().all(|c| c.is_ascii_digit()) => rest,
+        _ => first,
+    };
+    let first = first.trim_end_matches('.');
+    let quoted = lines.find_map(|l| l.trim().strip_prefix("String: ")).map(|q| q.trim().trim_matches('\'').trim_end());
+    match quoted {
+        Some(q) if !q.is_empty() => format!("{first}: `{q}`"),
+        _ => first.to_string(),
+    }
+}
+
 /// An element may declare no more entries than the file's bytes can hold: the parser would
 /// otherwise build every declared entry of an element without properties (found by fuzzing:
 /// 125 bytes declaring 68 M vertices took 2.4 GB).
 pub fn parse(bytes: &[u8]) -> Result<PlyMesh, String> {
     let mut reader = Reader::new(std::io::Cursor::new(bytes));
-    let describe = |e: ply_rs_bw::parser::ParseError| match e.line() {
-        Some(line) => format!("line {line}: {e}"),
-        None => e.to_string(),
+    let describe = |e: ply_rs_bw::parser::ParseError| {
+        let text = plain_message(&e.to_string());
+        match e.line() {
+            Some(line) => format!("line {line}: {text}"),
+            None => text,
+        }
     };
     let header = Parser::<Vertex>::new().read_header(&mut reader).map_err(describe)?;
     let binary = !matches!(header.encoding, Encoding::Ascii);
@@ -253,6 +274,20 @@ mod tests {
         property float nz\nproperty float u\nproperty float v\nproperty uchar red\n\
         element face 1\nproperty list uchar int vertex_indices\nend_header\n\
         0 0 0 0 0 1 0 0 255\n1 0 0 0 0 1 1 0 255\n1 1 0 0 0 1 1 1 255\n0 1 0 0 0 1 0 1 255\n4 0 1 2 3\n";
+
+    /// A malformed PLY is described in one plain line: where, what, and the text it could not
+    /// read; not the parser's debug dumps.
+    #[test]
+    fn errors_are_one_plain_line() {
+        let bad_value = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+            property float z\nend_header\n1 0 oops\n";
+        let bad_type = "ply\nformat ascii 1.0\nelement vertex 1\nproperty floaty x\nend_header\n";
+        for (text, want) in [(bad_value, "line 8: "), (bad_type, "line 4: ")] {
+            let e = parse(text.as_bytes()).unwrap_err();
+            assert!(e.starts_with(want) && !e.contains('\n') && !e.contains('\t') && !e.contains(" { "), "{e}");
+        }
+        assert!(parse(bad_value.as_bytes()).unwrap_err().contains("`1 0 oops`"));
+    }
 
     #[test]
     fn ascii_with_normals_and_texture_coordinates() {

@@ -144,6 +144,7 @@ impl Translator<'_, '_> {
                 // Mitsuba flips an OBJ's `v` by default (its bitmaps start at the top).
                 let flip_v = s.plugin == "obj" && self.boolean(s, "flip_tex_coords", true)?;
                 let path = resolve(&self.reader.includes.files[0], &s.at.file, &file).to_string_lossy().into_owned();
+                self.out.origins.entry(format!("mesh {path}")).or_insert_with(|| (s.at.file.to_path_buf(), s.at.line));
                 let (obj, ply) = if s.plugin == "obj" { (Some(path), None) } else { (None, Some(path)) };
                 self.out.meshes.push(MeshDescription {
                     obj,

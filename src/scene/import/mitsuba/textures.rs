@@ -58,6 +58,7 @@ impl Translator<'_, '_> {
                 TextureDescription::constant([0.5; 3])
             }
         };
+        self.out.origins.insert(format!("texture {name}"), (t.at.file.to_path_buf(), t.at.line));
         self.out.textures.insert(name.clone(), description);
         Ok(name)
     }

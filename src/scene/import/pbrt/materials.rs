@@ -467,6 +467,7 @@ impl Parser<'_> {
             }
         };
         self.check_unused(&format!("Texture \"{kind}\""), params, at)?;
+        self.out.origins.insert(format!("texture {key}"), (at.file.to_path_buf(), at.line));
         self.out.textures.insert(key.clone(), description);
         self.textures.insert((float, name), key);
         Ok(())

@@ -266,9 +266,11 @@ impl Parser<'_> {
                     }
                 }
                 let material = self.shape_material()?;
+                let ply = self.resolve(&file).to_string_lossy().into_owned();
+                self.out.origins.entry(format!("mesh {ply}")).or_insert_with(|| (at.file.to_path_buf(), at.line));
                 self.out.meshes.push(MeshDescription {
                     obj: None,
-                    ply: Some(self.resolve(&file).to_string_lossy().into_owned()),
+                    ply: Some(ply),
                     material: Some(material),
                     reverse_winding: self.state.reverse,
                     matrix: (ctm != DMat4::IDENTITY).then(|| to_rows(ctm)),
