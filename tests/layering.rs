@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 /// Lowest first. A module may use any module of a lower row, none of its own row or above.
 const LAYERS: &[&[&str]] = &[
     &["error"],
-    &["io", "stats", "color"],
+    &["io", "stats", "color", "denoise"],
     &["sampler"],
     &["geometry"],
     &["film"],
