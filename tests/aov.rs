@@ -68,4 +68,5 @@ fn aov_layers_are_present_and_sensible() {
         .unwrap();
     assert!(o.status.success());
     assert_eq!(channels(&plain).len(), 6);
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -355,6 +355,7 @@ mod tests {
         assert!(long.file_name().unwrap().len() >= 250);
         commit(vec![stage(&long, |w| w.write_all(b"long").map_err(|e| Error::io(&long, e))).unwrap()]).unwrap();
         assert_eq!(std::fs::read_to_string(&long).unwrap(), "long");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
@@ -381,6 +382,7 @@ mod tests {
         assert!(leftovers(&dir).is_empty(), "{:?}", leftovers(&dir));
         // Other tests run alongside and register their own files: only this folder's count.
         assert!(!pending().iter().any(|p| p.starts_with(&dir)), "{:?}", pending());
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
@@ -398,6 +400,7 @@ mod tests {
         assert_eq!(std::fs::read_to_string(&a).unwrap(), "old a");
         assert!(b.is_dir());
         assert!(leftovers(&dir).is_empty(), "{:?}", leftovers(&dir));
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
@@ -420,6 +423,7 @@ mod tests {
         assert_eq!(std::fs::read_to_string(&ro).unwrap(), "keep");
         assert_eq!(std::fs::read_to_string(&target).unwrap(), "keep");
         assert!(leftovers(&dir).is_empty(), "{:?}", leftovers(&dir));
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
@@ -435,5 +439,6 @@ mod tests {
         assert!(err.to_string().contains("is both the EXR and the PNG"), "{err}");
         check_outputs(&[("EXR", &dir.join("x.exr")), ("PNG", &x)], &[("image", &a)]).unwrap();
         assert!(leftovers(&dir).is_empty());
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
