@@ -194,6 +194,22 @@ fn missing_and_unreadable_scene() {
     expect_error(&d.join("nope"), &[], "nope");
     // A folder without scene.toml.
     expect_error(&d, &[], "scene.toml");
+    // A folder in the layout of Bitterli's collection: its pbrt/scene-v4.pbrt, named by the
+    // folder.
+    let bit = scratch("bitterli-layout");
+    std::fs::create_dir_all(bit.join("pbrt")).unwrap();
+    let pbrt = "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" 45\n\
+        Film \"rgb\" \"integer xresolution\" 8 \"integer yresolution\" 8\nWorldBegin\n\
+        AreaLightSource \"diffuse\" \"rgb L\" [1 1 1]\nShape \"sphere\" \"float radius\" 1\n";
+    std::fs::write(bit.join("pbrt/scene-v4.pbrt"), pbrt).unwrap();
+    let o = zvidpt(&["render", s(&bit), "-o", s(&bit.join("o.exr")), "--spp", "1", "-q", "--integrator", "path"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let name = bit.file_name().unwrap().to_string_lossy().into_owned();
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains(&format!("{name} 8x8")),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
     // Not UTF-8 text.
     let bin = scratch("binary");
     std::fs::write(bin.join("scene.toml"), [0xff, 0xfe, 0x00, 0x80]).unwrap();

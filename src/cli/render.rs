@@ -4,7 +4,8 @@ use crate::render::checkpoint::{CheckpointSettings, Resume, is_checkpoint};
 
 #[derive(Debug, Args)]
 pub struct RenderArgs {
-    /// Scene file, or a folder holding `scene.toml`.
+    /// Scene file (TOML, Mitsuba 3 `.xml`, pbrt-v4 `.pbrt`), or a folder holding `scene.toml`,
+    /// `scene.xml`, `scene.pbrt` or `pbrt/scene-v4.pbrt` (the first found).
     #[arg(default_value = DEFAULT_SCENE)]
     pub scene: PathBuf,
     #[command(flatten)]

@@ -21,18 +21,18 @@ use super::limits::*;
 use super::materials::*;
 use super::mesh::*;
 
-/// A scene argument is a scene file or a folder holding `scene.toml` (or else `scene.xml`,
-/// or `scene.pbrt`).
+/// The files a scene folder is looked into for, in order: ours, Mitsuba 3's and pbrt-v4's
+/// names, then the layout of Bitterli's collection (`pbrt/scene-v4.pbrt`).
+pub const SCENE_FILES: [&str; 4] = ["scene.toml", "scene.xml", "scene.pbrt", "pbrt/scene-v4.pbrt"];
+
+/// A scene argument is a scene file or a folder holding one of [`SCENE_FILES`] (the first
+/// found; `scene.toml`, to be reported missing, where none is).
 #[must_use]
 pub fn resolve_scene_path(path: &Path) -> PathBuf {
     if !path.is_dir() {
         return path.to_path_buf();
     }
-    let toml = path.join("scene.toml");
-    if toml.exists() {
-        return toml;
-    }
-    ["scene.xml", "scene.pbrt"].iter().map(|f| path.join(f)).find(|p| p.exists()).unwrap_or(toml)
+    SCENE_FILES.iter().map(|f| path.join(f)).find(|p| p.exists()).unwrap_or_else(|| path.join(SCENE_FILES[0]))
 }
 
 impl Scene {
@@ -44,7 +44,14 @@ impl Scene {
     /// Loads a scene file in any format we read (by its extension: `.xml` is Mitsuba 3,
     /// anything else our TOML), or a folder holding `scene.toml`.
     pub fn load_with(path: impl AsRef<Path>, options: &ImportOptions) -> Result<Scene> {
-        let path = resolve_scene_path(path.as_ref());
+        let given = path.as_ref();
+        let path = resolve_scene_path(given);
+        if given.is_dir() && !path.exists() {
+            return Err(Error::InvalidScene {
+                path: given.to_path_buf(),
+                message: format!("a folder without a scene file (looked for {})", SCENE_FILES.join(", ")),
+            });
+        }
         let text = read_text(&path, MAX_SCENE_BYTES, "scene file")?;
         match Format::of(&path) {
             Format::Toml => Scene::parse(&text, &path),
@@ -469,10 +476,19 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
             findings.non_simple
         ));
     }
-    let name = path
-        .parent()
-        .and_then(|p| p.file_name())
-        .map_or_else(|| "scene".to_string(), |n| n.to_string_lossy().into_owned());
+    // The scene file's folder; in Bitterli's layout (`NAME/pbrt/scene-v4.pbrt`) the one above.
+    fn folder_of(p: &Path) -> Option<&Path> {
+        p.parent().filter(|f| !f.as_os_str().is_empty())
+    }
+    let mut named = folder_of(path);
+    if named.and_then(Path::file_name).is_some_and(|n| n == "pbrt")
+        && path.file_name().is_some_and(|n| n == "scene-v4.pbrt")
+        && let Some(above) = named.and_then(folder_of)
+    {
+        named = Some(above);
+    }
+    let name =
+        named.and_then(|p| p.file_name()).map_or_else(|| "scene".to_string(), |n| n.to_string_lossy().into_owned());
     let (lights, light_sources) = lights_from(path, &d)?;
     let surfaces = Surfaces { triangles, triangle_material, materials };
     let mut scene = Scene::from_parts(name, path.to_path_buf(), camera, surfaces, lights, warnings);
