@@ -238,3 +238,36 @@ fn an_interrupted_batch_continues_when_run_again() {
     assert_same_bits(&dir.join("two.exr"), &whole, "the next job");
     assert!(!checkpoint.exists());
 }
+
+/// A render to a noise target, stopped by SIGTERM and resumed, stops at the same pass as one
+/// run straight through: the same bits (the target's rule reads the restored sums).
+#[test]
+fn a_render_to_a_noise_target_resumes_to_the_same_stop() {
+    let dir = scratch("resume", "noise-target");
+    let scene = scene();
+    let target = ["--noise-target", "0.1", "--progress-json"];
+    let whole = dir.join("whole.exr");
+    let o =
+        zvidpt(&[&render_args(&scene, "path", "1000000", &whole)[..], &target[..], &["--no-checkpoint"][..]].concat());
+    assert!(o.status.success(), "{}", text(&o));
+    let out = dir.join("stopped.exr");
+    let mut child = bin()
+        .args([&render_args(&scene, "path", "1000000", &out)[..], &target[..]].concat())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
+    let mut passes = 0;
+    while passes < 2 {
+        let line = lines.next().expect("the render reports its passes").unwrap();
+        passes += usize::from(line.contains("\"event\":\"pass\""));
+    }
+    send_signal(child.id(), "TERM");
+    let rest: Vec<String> = lines.map(Result::unwrap).collect();
+    assert_eq!(child.wait().unwrap().code(), Some(143), "{rest:?}");
+    assert!(!out.exists());
+    let o = zvidpt(&[&render_args(&scene, "path", "1000000", &out)[..], &target[..], &["--resume"][..]].concat());
+    assert!(o.status.success(), "{}", text(&o));
+    assert_same_bits(&out, &whole, "noise target");
+}
