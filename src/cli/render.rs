@@ -60,7 +60,7 @@ pub struct RenderArgs {
     pub tile_size: u32,
     /// Extra EXR layers, comma-separated: albedo (albedo.R/G/B), normal (normal.X/Y/Z, world
     /// space, facing the camera), depth (Z, distance to the first hit), spp (per-pixel sample
-    /// count), variance (variance.R/G/B, always written). From 16 jittered camera rays per pixel.
+    /// count), variance (variance.R/G/B, always written). From 9 jittered camera rays per pixel.
     #[arg(long, value_enum, value_delimiter = ',')]
     pub aov: Vec<Aov>,
     /// Also denoise the image with Intel Open Image Denoise (`RT` filter guided by the first
