@@ -109,6 +109,21 @@ fn learned_killed_and_resumed_is_bit_identical() {
 }
 
 /// Sends `signal` once the render has finished a pass (it says so in a JSON line).
+/// Runs `zvidpt` with `args` (which ask for `--progress-json`), sends it `signal` once it has
+/// reported two passes, and returns its exit code and the lines it wrote after that.
+fn signal_after_two_passes(args: &[&str], signal: &str) -> (Option<i32>, Vec<String>) {
+    let mut child = bin().args(args).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
+    let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
+    let mut passes = 0;
+    while passes < 2 {
+        let line = lines.next().expect("the render reports its passes").unwrap();
+        passes += usize::from(line.contains("\"event\":\"pass\""));
+    }
+    send_signal(child.id(), signal);
+    let rest: Vec<String> = lines.map(Result::unwrap).collect();
+    (child.wait().unwrap().code(), rest)
+}
+
 fn signalled(signal: &str, code: i32) {
     let dir = scratch("resume", &format!("signal-{signal}"));
     let scene = scene();
@@ -118,22 +133,9 @@ fn signalled(signal: &str, code: i32) {
     let out = dir.join("stopped.exr");
     let checkpoint = dir.join("stopped.exr.checkpoint");
     // No checkpoint before the signal: the one it writes is the only one.
-    let mut child = bin()
-        .args([&render_args(&scene, "path", "1024", &out)[..], &["--progress-json"][..]].concat())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
-    let mut passes = 0;
-    while passes < 2 {
-        let line = lines.next().expect("the render reports its passes").unwrap();
-        passes += usize::from(line.contains("\"event\":\"pass\""));
-    }
-    send_signal(child.id(), signal);
-    let rest: Vec<String> = lines.map(Result::unwrap).collect();
-    let status = child.wait().unwrap();
-    assert_eq!(status.code(), Some(code), "{signal}: {rest:?}");
+    let args = [&render_args(&scene, "path", "1024", &out)[..], &["--progress-json"][..]].concat();
+    let (status, rest) = signal_after_two_passes(&args, signal);
+    assert_eq!(status, Some(code), "{signal}: {rest:?}");
     assert!(rest.iter().any(|l| l.contains("kept in")), "{rest:?}");
     assert!(!out.exists());
     assert!(checkpoint_spp(&checkpoint) >= 8);
@@ -251,21 +253,9 @@ fn a_render_to_a_noise_target_resumes_to_the_same_stop() {
         zvidpt(&[&render_args(&scene, "path", "1000000", &whole)[..], &target[..], &["--no-checkpoint"][..]].concat());
     assert!(o.status.success(), "{}", text(&o));
     let out = dir.join("stopped.exr");
-    let mut child = bin()
-        .args([&render_args(&scene, "path", "1000000", &out)[..], &target[..]].concat())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
-    let mut passes = 0;
-    while passes < 2 {
-        let line = lines.next().expect("the render reports its passes").unwrap();
-        passes += usize::from(line.contains("\"event\":\"pass\""));
-    }
-    send_signal(child.id(), "TERM");
-    let rest: Vec<String> = lines.map(Result::unwrap).collect();
-    assert_eq!(child.wait().unwrap().code(), Some(143), "{rest:?}");
+    let args = [&render_args(&scene, "path", "1000000", &out)[..], &target[..]].concat();
+    let (status, rest) = signal_after_two_passes(&args, "TERM");
+    assert_eq!(status, Some(143), "{rest:?}");
     assert!(!out.exists());
     let o = zvidpt(&[&render_args(&scene, "path", "1000000", &out)[..], &target[..], &["--resume"][..]].concat());
     assert!(o.status.success(), "{}", text(&o));

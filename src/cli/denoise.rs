@@ -10,15 +10,8 @@ pub struct DenoiseArgs {
     /// The denoised EXR (never the input).
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Output PNG. Default: the EXR's path with a .png extension.
-    #[arg(long)]
-    pub png: Option<PathBuf>,
-    /// Do not write a PNG.
-    #[arg(long, conflicts_with = "png")]
-    pub no_png: bool,
-    /// PNG exposure in stops.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    pub exposure: f32,
+    #[command(flatten)]
+    pub png: PngArgs,
     /// Denoiser threads [default: one per core].
     #[arg(long)]
     pub threads: Option<usize>,
@@ -34,7 +27,7 @@ fn pixels3(planes: &[Option<Vec<f32>>]) -> Option<Vec<[f32; 3]>> {
 }
 
 pub fn run_denoise(args: &DenoiseArgs) -> Result<()> {
-    let png = png_destination(&args.output, args.png.as_deref(), args.no_png)?;
+    let png = args.png.destination(&args.output, false)?;
     let mut outputs = vec![("EXR", args.output.as_path())];
     if let Some(p) = &png {
         outputs.push(("PNG", p.as_path()));
@@ -45,19 +38,19 @@ pub fn run_denoise(args: &DenoiseArgs) -> Result<()> {
     let normal = pixels3(&aux[3..]);
     let denoiser = crate::denoise::Denoiser::load(args.threads)?;
     let d = denoiser.denoise(image.width, image.height, &image.pixels, albedo.as_deref(), normal.as_deref())?;
-    if d.guided_by == "none" {
+    if albedo.is_none() {
         warn!(
             "warning: {} has no albedo/normal layers: denoised from the beauty alone (render with --aov albedo,normal for better results)",
             args.image.display()
         );
     }
     meta.push("denoised_from", args.image.display());
-    meta.push("denoiser", format!("Open Image Denoise RT, hdr, cleanAux, guided by {}", d.guided_by));
+    meta.push("denoiser", d.filter());
     meta.push("denoise_seconds", format!("{:.3}", d.seconds));
     let out = film::Image { pixels: d.pixels, variance: None, ..image };
     let mut staged = vec![film::stage_exr(&args.output, &out, &meta)?];
     if let Some(p) = &png {
-        staged.push(film::stage_png(p, &out, args.exposure)?);
+        staged.push(film::stage_png(p, &out, args.png.exposure)?);
     }
     film::commit(staged)?;
     out!(

@@ -11,15 +11,8 @@ pub struct MergeArgs {
     /// Output EXR.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Output PNG. Default: the EXR's path with a .png extension.
-    #[arg(long)]
-    pub png: Option<PathBuf>,
-    /// Do not write a PNG.
-    #[arg(long, conflicts_with = "png")]
-    pub no_png: bool,
-    /// PNG exposure in stops.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    pub exposure: f32,
+    #[command(flatten)]
+    pub png: PngArgs,
     /// Set by `zvidpt batch --slurm`'s merge job: the batch job's fingerprint, kept in the
     /// metadata so that a rerun of the batch skips this render.
     #[arg(long, hide = true)]
@@ -41,7 +34,7 @@ const PER_PART: [&str; 10] = [
 ];
 
 pub fn run_merge(args: &MergeArgs) -> Result<()> {
-    let png = png_destination(&args.output, args.png.as_deref(), args.no_png)?;
+    let png = args.png.destination(&args.output, false)?;
     let mut outputs = vec![("EXR", args.output.as_path())];
     if let Some(p) = &png {
         outputs.push(("PNG", p.as_path()));
@@ -107,7 +100,7 @@ pub fn run_merge(args: &MergeArgs) -> Result<()> {
     }
     let mut staged = vec![film::stage_exr(&args.output, &image, &meta)?];
     if let Some(p) = &png {
-        staged.push(film::stage_png(p, &image, args.exposure)?);
+        staged.push(film::stage_png(p, &image, args.png.exposure)?);
     }
     film::commit(staged)?;
     out!(

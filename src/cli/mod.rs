@@ -531,25 +531,41 @@ pub fn validate(cli: &Cli) -> Result<()> {
     }
 }
 
-/// Where the PNG beside the EXR `output` goes: `png` if given, none with `no_png`, else the
-/// EXR's path with a .png extension — checked: that derived path must not be the EXR itself
-/// and may replace only an earlier PNG.
-fn png_destination(output: &Path, png: Option<&Path>, no_png: bool) -> Result<Option<PathBuf>> {
-    if no_png {
-        return Ok(None);
+/// The sRGB PNG written beside a command's EXR: shared by `render`, `merge` and `denoise`.
+#[derive(Clone, Debug, Args)]
+pub struct PngArgs {
+    /// Output PNG (sRGB). Default: the EXR's path with a .png extension.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    /// Do not write a PNG.
+    #[arg(long, conflicts_with = "png")]
+    pub no_png: bool,
+    /// PNG exposure in stops (pixel values are scaled by 2^EV before sRGB encoding).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub exposure: f32,
+}
+
+impl PngArgs {
+    /// Where the PNG beside the EXR `output` goes: `--png` if given, none with `--no-png` or
+    /// `skip`, else the EXR's path with a .png extension — checked: that derived path must not
+    /// be the EXR itself and may replace only an earlier PNG.
+    fn destination(&self, output: &Path, skip: bool) -> Result<Option<PathBuf>> {
+        if self.no_png || skip {
+            return Ok(None);
+        }
+        if let Some(p) = &self.png {
+            return Ok(Some(p.clone()));
+        }
+        let derived = output.with_extension("png");
+        if film::same_file(&derived, output) {
+            return Err(Error::InvalidOption(format!(
+                "-o {} names the EXR, and the PNG beside it would be the same file: use -o NAME.exr, --png PATH or --no-png",
+                output.display()
+            )));
+        }
+        check_derived_png(&derived)?;
+        Ok(Some(derived))
     }
-    if let Some(p) = png {
-        return Ok(Some(p.to_path_buf()));
-    }
-    let derived = output.with_extension("png");
-    if film::same_file(&derived, output) {
-        return Err(Error::InvalidOption(format!(
-            "-o {} names the EXR, and the PNG beside it would be the same file: use -o NAME.exr, --png PATH or --no-png",
-            output.display()
-        )));
-    }
-    check_derived_png(&derived)?;
-    Ok(Some(derived))
 }
 
 /// The PNG written beside the EXR by default (a path the user did not type) may replace only

@@ -15,15 +15,8 @@ pub struct RenderArgs {
     /// Output EXR (linear float RGB, per-pixel variance, render metadata).
     #[arg(short, long, default_value = "render.exr")]
     pub output: PathBuf,
-    /// Output PNG (sRGB). Default: the EXR's path with a .png extension.
-    #[arg(long)]
-    pub png: Option<PathBuf>,
-    /// Do not write a PNG.
-    #[arg(long, conflicts_with = "png")]
-    pub no_png: bool,
-    /// PNG exposure in stops (pixel values are scaled by 2^EV before sRGB encoding).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    pub exposure: f32,
+    #[command(flatten)]
+    pub png: PngArgs,
     /// Samples per pixel [default: the scene's (Mitsuba's `sample_count`), else 64; unlimited
     /// when --time is given].
     #[arg(long)]
@@ -148,7 +141,7 @@ pub(super) fn check_render_options(args: &RenderArgs) -> Result<()> {
             ));
         }
     }
-    if !args.exposure.is_finite() {
+    if !args.png.exposure.is_finite() {
         return Err(Error::InvalidOption("--exposure must be finite".into()));
     }
     if let Some(t) = args.time
@@ -205,7 +198,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
     check_render_options(args)?;
     // A partial render is a file of sums: no PNG. Fail before rendering if an output cannot
     // be written or would replace what it must not.
-    let png = png_destination(&args.output, args.png.as_deref(), args.no_png || args.samples.is_some())?;
+    let png = args.png.destination(&args.output, args.samples.is_some())?;
     args.machine.backend.check_available()?;
     let loading = std::time::Instant::now();
     let scene = load_scene(args)?;
@@ -339,10 +332,7 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         meta.push("relative_error", format!("{e:.5}"));
     }
     if let Some(d) = &denoised {
-        meta.push(
-            "denoiser",
-            format!("Open Image Denoise RT, hdr, cleanAux, guided by {}: layers denoised.R/G/B", d.guided_by),
-        );
+        meta.push("denoiser", format!("{}: layers denoised.R/G/B", d.filter()));
         meta.push("denoise_seconds", format!("{:.3}", d.seconds));
     }
     if let Some(key) = &args.job_key {
@@ -360,11 +350,17 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         None => film::stage_exr_with(&args.output, &image, &meta, layers)?,
     }];
     if let Some(p) = &png {
-        staged.push(film::stage_png(p, &image, args.exposure)?);
+        staged.push(film::stage_png(p, &image, args.png.exposure)?);
     }
     if let (Some(p), Some(d)) = (&denoised_png, &denoised) {
-        let denoised_image = film::Image { pixels: d.pixels.clone(), variance: None, ..image.clone() };
-        staged.push(film::stage_png(p, &denoised_image, args.exposure)?);
+        let denoised_image = film::Image {
+            width: image.width,
+            height: image.height,
+            pixels: d.pixels.clone(),
+            variance: None,
+            spp: image.spp,
+        };
+        staged.push(film::stage_png(p, &denoised_image, args.png.exposure)?);
     }
     film::commit(staged)?;
     // The image holds every sample now: the checkpoint has served.

@@ -37,6 +37,14 @@ pub struct Denoised {
     pub guided_by: &'static str,
 }
 
+impl Denoised {
+    /// The filter that made it, as the image's metadata names it.
+    #[must_use]
+    pub fn filter(&self) -> String {
+        format!("Open Image Denoise RT, hdr, cleanAux, guided by {}", self.guided_by)
+    }
+}
+
 /// Where to look for the library, in order: `OIDN_DIR` (the file itself, or a folder holding
 /// it or a `lib/` holding it), the system's loader path (by name), and `pyoidn`'s wheel (found
 /// by asking `python3` where the package lives).

@@ -136,6 +136,28 @@ pub struct Scatter {
     pub delta: bool,
 }
 
+/// Cosine sampling of a Lambertian surface of reflectance `rho` at `si` (local frame `frame`):
+/// two numbers, weight `rho`.
+#[inline(always)]
+pub(crate) fn sample_cosine(
+    si: &SurfaceInteraction,
+    frame: &Frame,
+    rho: Vec3A,
+    rng: &mut SampleStream,
+) -> Option<Scatter> {
+    let wo = crate::geometry::warp::cosine_hemisphere(rng.next_2d());
+    if wo.z <= 0.0 {
+        return None;
+    }
+    let dir = frame.to_world(wo);
+    si.consistent(dir, wo.z).then_some(Scatter {
+        dir,
+        weight: rho,
+        pdf: wo.z * std::f32::consts::FRAC_1_PI,
+        delta: false,
+    })
+}
+
 /// The BSDF's own sampling at `si` (local frame `frame`, `wi` the local direction to the
 /// viewer): two numbers for the direction, one for the lobe.
 #[inline]
@@ -143,17 +165,7 @@ pub fn sample_bsdf(si: &SurfaceInteraction, frame: &Frame, wi: Vec3A, rng: &mut 
     // A Lambertian surface has one lobe (no number to choose it) and needs no call into the
     // BSDF's general sampler: cosine sampling, inline.
     if let Some(rho) = si.material.lambertian() {
-        let wo = crate::geometry::warp::cosine_hemisphere(rng.next_2d());
-        if wo.z <= 0.0 {
-            return None;
-        }
-        let dir = frame.to_world(wo);
-        return si.consistent(dir, wo.z).then_some(Scatter {
-            dir,
-            weight: rho,
-            pdf: wo.z * std::f32::consts::FRAC_1_PI,
-            delta: false,
-        });
+        return sample_cosine(si, frame, rho, rng);
     }
     let s = si.material.bsdf.sample(wi, rng.next_f32(), rng.next_2d())?;
     let dir = frame.to_world(s.wo);

@@ -6,6 +6,7 @@
 //! each light path is counted once in expectation.
 use super::{
     Integrator, MisAt, RenderContext, Scatter, Scratch, direct_light, nee_strategy, power_heuristic, sample_bsdf,
+    sample_cosine,
 };
 use crate::accel::Accel;
 use crate::geometry::{Frame, UVec2, Vec3A};
@@ -100,18 +101,7 @@ impl Integrator for PathTracer {
 /// always inlined, without the branch to the general sampler.
 #[inline(always)]
 fn sample_lambertian(si: &SurfaceInteraction, frame: &Frame, _: Vec3A, rng: &mut SampleStream) -> Option<Scatter> {
-    let rho = si.material.lambertian().unwrap_or(Vec3A::ZERO);
-    let wo = crate::geometry::warp::cosine_hemisphere(rng.next_2d());
-    if wo.z <= 0.0 {
-        return None;
-    }
-    let dir = frame.to_world(wo);
-    si.consistent(dir, wo.z).then_some(Scatter {
-        dir,
-        weight: rho,
-        pdf: wo.z * std::f32::consts::FRAC_1_PI,
-        delta: false,
-    })
+    sample_cosine(si, frame, si.material.lambertian().unwrap_or(Vec3A::ZERO), rng)
 }
 
 /// [`trace_path`] with BSDF sampling, any material, bounded or not.

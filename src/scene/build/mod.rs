@@ -108,7 +108,6 @@ impl Scene {
 /// of texture coordinates (empty when none has one).
 type Textures = (Vec<Texture>, HashMap<String, u16>, Vec<PathBuf>, Vec<Option<glam::Affine2>>);
 
-/// The `[textures]` of a scene file, their indices by name, and the files they read.
 /// An error reading a file that a texture or mesh names (`key` in the description's origins;
 /// `what` the texture, or empty: the error names the file), reported where the scene file
 /// names it: an imported scene's file and line, or the TOML file. Other errors pass as they
@@ -124,6 +123,7 @@ fn located(path: &Path, d: &SceneDescription, key: &str, what: &str, e: Error) -
     }
 }
 
+/// The `[textures]` of a scene file, their indices by name, and the files they read.
 fn textures_from(path: &Path, d: &SceneDescription) -> Result<Textures> {
     use super::description::{FilterDescription, TextureKind, WrapDescription};
     let (mut textures, mut ids, mut sources, mut maps) = (Vec::new(), HashMap::new(), Vec::new(), Vec::new());
