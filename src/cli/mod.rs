@@ -268,6 +268,12 @@ pub struct PhotonArgs {
     /// vertex, whatever its guide cell learned (a defensive mixture; 0: as learned).
     #[arg(long, default_value_t = 0.0)]
     pub defensive: f32,
+    /// zvidpt and jensen --learned-guide on: most strata per axis over which a pixel's seen
+    /// light (emission at the first hit, and behind mirrors and smooth glass from there) is
+    /// split, where a light smaller than the pixel makes it the pixel's noise: up to N×N
+    /// extra camera rays per sample, chosen per pixel from the training (1: off).
+    #[arg(long, default_value_t = 8)]
+    pub seen_strata: u8,
     /// jensen: guide with the learned importance function (PPG-style guided path tracing)
     /// instead of the photon grid.
     #[arg(long, value_enum, default_value_t = Switch::Off)]
@@ -303,6 +309,7 @@ impl PhotonArgs {
             fallback: Switch::On,
             min_survival: 0.2,
             defensive: 0.0,
+            seen_strata: 8,
             learned_guide: Switch::Off,
         }
     }
@@ -324,6 +331,7 @@ impl PhotonArgs {
             fallback: self.fallback == Switch::On,
             min_survival: self.min_survival,
             defensive: self.defensive,
+            seen_strata: self.seen_strata,
             train_spp: self.train_spp,
             mis: self.mis,
         }
@@ -412,6 +420,9 @@ impl PhotonArgs {
         if !(self.defensive.is_finite() && (0.0..=1.0).contains(&self.defensive)) {
             return Err(Error::InvalidOption("--defensive must lie in [0, 1]".into()));
         }
+        if !(1..=16).contains(&self.seen_strata) {
+            return Err(Error::InvalidOption("--seen-strata must lie in 1..=16".into()));
+        }
         Ok(())
     }
 
@@ -451,6 +462,7 @@ impl PhotonArgs {
             meta.push("fallback", flag_name(self.fallback));
             meta.push("min_survival", self.min_survival);
             meta.push("defensive", self.defensive);
+            meta.push("seen_strata", self.seen_strata);
         }
     }
 }

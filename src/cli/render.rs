@@ -568,6 +568,7 @@ mod tests {
         ("fallback", "zvidpt", "off"),
         ("min-survival", "zvidpt", "0.5"),
         ("defensive", "zvidpt", "0.1"),
+        ("seen-strata", "zvidpt", "1"),
     ];
 
     fn identity(args: &[&str]) -> Vec<(String, String)> {

@@ -59,12 +59,19 @@ impl Integrator for Jensen {
         let mut grid = std::mem::take(&mut scratch.grid);
         // Without MIS (Jensen's method counts light by NEE only), so the grid's density on a
         // Lambertian surface is never needed.
-        let radiance =
-            trace_path::<A, false, true>(ctx, pixel, rng, scratch, self.rr_depth, Mis::Off, |si, frame, wi, rng| {
+        let radiance = trace_path::<A, false, true, true>(
+            ctx,
+            pixel,
+            rng,
+            scratch,
+            self.rr_depth,
+            Mis::Off,
+            |si, frame, wi, rng| {
                 let grid_frame = si.gather_frame(frame);
                 let g = guide.at(si, &grid_frame, &mut grid);
                 guide.scatter(&g, si, &grid_frame, frame, wi, rng)
-            });
+            },
+        );
         scratch.grid = grid;
         radiance
     }

@@ -8,6 +8,7 @@ mod jensen;
 pub mod mixture;
 pub mod path;
 pub mod photon_guided;
+pub mod seen;
 mod volume;
 pub mod zvidpt;
 mod zvidpt_paper;
@@ -16,7 +17,7 @@ pub use choice::{IntegratorKind, IntegratorSettings};
 pub use jensen::Jensen;
 pub use path::{Mis, PathTracer};
 pub use photon_guided::GuideSettings;
-pub use zvidpt::{LearnedSettings, LearnedZvidpt, Roulette};
+pub use zvidpt::{LearnedSettings, LearnedZvidpt, PixelSetup, Roulette};
 pub use zvidpt_paper::{Estimator, MAX_SUBPIXELS, Zvidpt};
 
 use crate::accel::Accel;
@@ -64,6 +65,9 @@ pub struct Scratch {
     pub non_finite: u64,
     /// Room for one guide grid, for integrators that build grids per vertex.
     pub grid: Vec<f32>,
+    /// The current camera sample's seen light so far (emission at its first hit and behind
+    /// delta lobes from there, weighted as in the sample: [`seen`]), where a walk records it.
+    pub seen: Vec3A,
 }
 
 /// A light-transport estimator: one unbiased sample of a pixel's radiance at a time, generic

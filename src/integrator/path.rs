@@ -90,10 +90,35 @@ impl Integrator for PathTracer {
             return super::volume::trace_volume_path(ctx, pixel, rng, scratch, r, m);
         }
         match (self.mis != Mis::All && ctx.lambertian_only, ctx.max_depth != u32::MAX) {
-            (true, false) => trace_path::<A, true, false>(ctx, pixel, rng, scratch, r, m, sample_lambertian),
-            (false, false) => general_path::<A, false>(ctx, pixel, rng, scratch, r, m),
-            (_, true) => general_path::<A, true>(ctx, pixel, rng, scratch, r, m),
+            (true, false) => trace_path::<A, true, false, true>(ctx, pixel, rng, scratch, r, m, sample_lambertian),
+            (false, false) => general_path::<A, false, true>(ctx, pixel, rng, scratch, r, m),
+            (_, true) => general_path::<A, true, true>(ctx, pixel, rng, scratch, r, m),
         }
+    }
+}
+
+impl PathTracer {
+    /// One sample of `pixel` whose seen light is split over `strata × strata` film points
+    /// ([`super::seen`]): the path leaves it out and the strata estimate it. Plain
+    /// [`Integrator::sample`] where `strata` is 1 or the scene has media.
+    pub fn sample_seen_split<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        pixel: UVec2,
+        strata: u8,
+        rng: &mut SampleStream,
+        scratch: &mut Scratch,
+    ) -> Vec3A {
+        if strata <= super::seen::UNSPLIT || ctx.volumetric {
+            return self.sample(ctx, pixel, &(), rng, scratch);
+        }
+        let (r, m) = (self.rr_depth, self.mis);
+        let rest = if ctx.max_depth == u32::MAX {
+            general_path::<A, false, false>(ctx, pixel, rng, scratch, r, m)
+        } else {
+            general_path::<A, true, false>(ctx, pixel, rng, scratch, r, m)
+        };
+        rest + super::seen::split_seen(ctx, pixel, strata, rng, scratch)
     }
 }
 
@@ -104,9 +129,10 @@ fn sample_lambertian(si: &SurfaceInteraction, frame: &Frame, _: Vec3A, rng: &mut
     sample_cosine(si, frame, si.material.lambertian().unwrap_or(Vec3A::ZERO), rng)
 }
 
-/// [`trace_path`] with BSDF sampling, any material, bounded or not.
+/// [`trace_path`] with BSDF sampling, any material, bounded or not, counting the seen light
+/// or not.
 #[inline(never)]
-fn general_path<A: Accel, const BOUNDED: bool>(
+fn general_path<A: Accel, const BOUNDED: bool, const SEEN: bool>(
     ctx: &RenderContext<A>,
     pixel: UVec2,
     rng: &mut SampleStream,
@@ -114,7 +140,7 @@ fn general_path<A: Accel, const BOUNDED: bool>(
     rr_depth: u32,
     mis: Mis,
 ) -> Vec3A {
-    trace_path::<A, false, BOUNDED>(ctx, pixel, rng, scratch, rr_depth, mis, sample_bsdf)
+    trace_path::<A, false, BOUNDED, SEEN>(ctx, pixel, rng, scratch, rr_depth, mis, sample_bsdf)
 }
 
 /// The path tracer's loop, with the choice of direction left to `sample_direction` (given the
@@ -128,9 +154,10 @@ fn general_path<A: Accel, const BOUNDED: bool>(
 /// `NEE_ONLY` promises that no vertex weighs BSDF-found emission (`mis` off there) and that
 /// nothing is delta or seen beyond the scene, so that only NEE counts light past the first hit;
 /// the loop then skips those checks. `BOUNDED`: paths end at `ctx.max_depth` segments (without
-/// it, `ctx.max_depth` must be unbounded).
+/// it, `ctx.max_depth` must be unbounded). Without `SEEN` the path leaves out the pixel's seen
+/// light (emission at the first hit and behind delta lobes from it, [`super::seen`]).
 #[inline(always)]
-pub(crate) fn trace_path<A: Accel, const NEE_ONLY: bool, const BOUNDED: bool>(
+pub(crate) fn trace_path<A: Accel, const NEE_ONLY: bool, const BOUNDED: bool, const SEEN: bool>(
     ctx: &RenderContext<A>,
     pixel: UVec2,
     rng: &mut SampleStream,
@@ -150,7 +177,9 @@ pub(crate) fn trace_path<A: Accel, const NEE_ONLY: bool, const BOUNDED: bool>(
         return ctx.scene.lights.environment(ray.dir);
     };
     let mut si = if NEE_ONLY { ctx.scene.interaction_inline(&ray, &hit) } else { ctx.scene.interaction(&ray, &hit) };
-    let mut radiance = si.emitted();
+    let mut radiance = if SEEN { si.emitted() } else { Vec3A::ZERO };
+    // Whether every scatter so far was a delta lobe (only tracked without `SEEN`).
+    let mut prefix = !SEEN;
     let mut throughput = Vec3A::ONE;
     // Light reaching a vertex (by NEE or by the next direction) ends a path of `bounce + 2`
     // segments: the last vertex that scatters.
@@ -183,6 +212,9 @@ pub(crate) fn trace_path<A: Accel, const NEE_ONLY: bool, const BOUNDED: bool>(
             break;
         };
         throughput *= s.weight;
+        if !SEEN {
+            prefix &= s.delta;
+        }
         let ray = si.spawn_ray(s.dir);
         scratch.rays += 1;
         let Some(hit) = ctx.accel.intersect(&ray) else {
@@ -203,7 +235,9 @@ pub(crate) fn trace_path<A: Accel, const NEE_ONLY: bool, const BOUNDED: bool>(
         let emitted = if NEE_ONLY { Vec3A::ZERO } else { next.emitted() };
         if !NEE_ONLY && emitted != Vec3A::ZERO {
             if s.delta {
-                radiance += throughput * emitted;
+                if SEEN || !prefix {
+                    radiance += throughput * emitted;
+                }
             } else if weigh.surfaces {
                 let strategy = nee_strategy(ctx.light_sampling, &si);
                 let p_light =

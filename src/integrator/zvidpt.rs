@@ -22,6 +22,7 @@
 //! (`--integrator jensen --learned-guide on`).
 use super::mixture::{BSDF_SHARE, guides_at, sample_mixture};
 use super::path::{Mis, PathTracer};
+use super::seen::{SeenPlan, SeenStats, UNSPLIT, plan, projected_variance, split_seen};
 use super::{Integrator, RenderContext, Scratch, direct_light_against, nee_strategy, power_heuristic, sample_bsdf};
 use crate::Result;
 use crate::accel::Accel;
@@ -110,6 +111,12 @@ pub struct LearnedSettings {
     /// MSE a further 40% and cornell-classic's 5%, but raised volumetric-caustic's 2.6×,
     /// cornell-paper's 12% and sky's.
     pub defensive: f32,
+    /// Most strata per axis over which a pixel's seen light is split ([`super::seen`]; 1:
+    /// never split): where a light smaller than the pixel is seen directly or through delta
+    /// lobes, up to `seen_strata²` film points per camera sample trace the camera's delta
+    /// prefix again, each pixel's count chosen from the training's measurements and the
+    /// lights' projection.
+    pub seen_strata: u8,
 }
 
 impl Default for LearnedSettings {
@@ -131,6 +138,7 @@ impl Default for LearnedSettings {
             fallback: true,
             min_survival: 0.2,
             defensive: 0.0,
+            seen_strata: 8,
         }
     }
 }
@@ -163,6 +171,18 @@ pub struct LearnedZvidpt {
     /// Whether walks split (up to `max_split` branches) or only roulette: split unless the
     /// probe found the walk more efficient without ([`Choice::split`]).
     split: bool,
+    /// Where the seen light is split over the pixel, and how finely (after training).
+    seen: Option<SeenPlan>,
+}
+
+/// What the learned integrator keeps per pixel: the weight window's reference and the
+/// strata of its seen light ([`super::seen`]).
+#[derive(Clone, Copy, Debug)]
+pub struct PixelSetup {
+    /// The pixel's reference indirect radiance (channels summed).
+    pub reference: f32,
+    /// Strata per axis of its seen light (1: counted by the walk).
+    pub strata: u8,
 }
 
 /// The learned walk against the path tracer, measured during and at the end of training: a
@@ -259,7 +279,22 @@ impl LearnedZvidpt {
     /// An integrator that has not trained yet (its pre-pass trains).
     #[must_use]
     pub fn new(settings: LearnedSettings) -> Self {
-        Self { settings, guide: None, iterations: Vec::new(), prior: None, choice: None, path: None, split: true }
+        Self {
+            settings,
+            guide: None,
+            iterations: Vec::new(),
+            prior: None,
+            choice: None,
+            path: None,
+            split: true,
+            seen: None,
+        }
+    }
+
+    /// Where the pixels' seen light is split, as the training decided ([`super::seen`]).
+    #[must_use]
+    pub fn seen_plan(&self) -> Option<&SeenPlan> {
+        self.seen.as_ref()
     }
 
     /// Training samples actually spent.
@@ -338,15 +373,10 @@ impl LearnedZvidpt {
     }
 
     /// One training iteration over the whole image at `spp`; returns what its walks
-    /// deposited, and each pixel's sums and sums of squares (row-major).
-    fn train_pass<A: Accel>(
-        &self,
-        ctx: &RenderContext<A>,
-        guide: &LearnedGuide,
-        seed: u64,
-        spp: u32,
-    ) -> (Deposits, Vec<[f64; 3]>, Vec<[f64; 3]>) {
-        type Row = Vec<([f64; 3], [f64; 3])>;
+    /// deposited, each pixel's sums and sums of squares (row-major), and each pixel's sums of
+    /// its seen light and the rest ([`SeenStats`]) with the rays traced.
+    fn train_pass<A: Accel>(&self, ctx: &RenderContext<A>, guide: &LearnedGuide, seed: u64, spp: u32) -> TrainPass {
+        type Row = Vec<([f64; 3], [f64; 3], [f64; 4])>;
         let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
         let walker = Walker { zvidpt: self, ctx, guide };
         // Each worker deposits into its own accumulators, summed afterwards (integer sums:
@@ -355,28 +385,45 @@ impl LearnedZvidpt {
             .into_par_iter()
             .with_min_len(4)
             .fold(
-                || (guide.deposits(), Vec::<(u32, Row)>::new()),
+                || (guide.deposits(), Vec::<(u32, Row, u64)>::new()),
                 |(mut deposits, mut rows), y| {
                     let mut scratch = Scratch::default();
                     let mut row = Vec::new();
                     for x in 0..width {
                         let pixel = UVec2::new(x, y);
                         let reference = self.pixel_reference(ctx, guide, pixel, seed, &mut scratch);
-                        let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
+                        let (mut sum, mut sum_sq, mut parts) = ([0.0f64; 3], [0.0f64; 3], [0.0f64; 4]);
                         // Iteration k takes samples 2^k .. 2^(k+1) of the pixel's sequence (an
                         // aligned block: stratified by itself, and with the others).
                         for s in spp..2 * spp {
                             let mut rng = SampleStream::new(seed, y * width + x, s);
-                            let v = walker.camera_sample(pixel, reference, &mut rng, &mut scratch, Some(&mut deposits));
-                            let v = if v.is_finite() { v } else { Vec3A::ZERO };
+                            scratch.seen = Vec3A::ZERO;
+                            let v = walker.camera_sample(
+                                pixel,
+                                reference,
+                                UNSPLIT,
+                                &mut rng,
+                                &mut scratch,
+                                Some(&mut deposits),
+                            );
+                            let (v, seen) = if v.is_finite() && scratch.seen.is_finite() {
+                                (v, f64::from(scratch.seen.element_sum()))
+                            } else {
+                                (Vec3A::ZERO, 0.0)
+                            };
                             for c in 0..3 {
                                 sum[c] += f64::from(v[c]);
                                 sum_sq[c] += f64::from(v[c]) * f64::from(v[c]);
                             }
+                            let rest = f64::from(v.element_sum()) - seen;
+                            parts[0] += seen;
+                            parts[1] += seen * seen;
+                            parts[2] += rest;
+                            parts[3] += rest * rest;
                         }
-                        row.push((sum, sum_sq));
+                        row.push((sum, sum_sq, parts));
                     }
-                    rows.push((y, row));
+                    rows.push((y, row, scratch.rays));
                     (deposits, rows)
                 },
             )
@@ -388,8 +435,14 @@ impl LearnedZvidpt {
                 },
             );
         rows.sort_unstable_by_key(|r| r.0);
-        let (sum, sum_sq) = rows.into_iter().flat_map(|r| r.1).unzip();
-        (deposits, sum, sum_sq)
+        let rays = rows.iter().map(|r| r.2).sum();
+        let (mut sum, mut sum_sq, mut seen) = (Vec::new(), Vec::new(), Vec::new());
+        for (a, b, c) in rows.into_iter().flat_map(|r| r.1) {
+            sum.push(a);
+            sum_sq.push(b);
+            seen.push(c);
+        }
+        TrainPass { deposits, sum, sum_sq, seen, rays }
     }
 
     /// Probes both walks (the path tracer's once, kept in `path_probe`) and records the
@@ -467,7 +520,7 @@ impl LearnedZvidpt {
                                 let key = 2 * u64::from(s) + u64::from(guide.is_some());
                                 let mut rng = SampleStream::in_domain(Domain::Probe, seed, index, key);
                                 let v = match &walker {
-                                    Some(w) => w.camera_sample(pixel, reference, &mut rng, &mut scratch, None),
+                                    Some(w) => w.camera_sample(pixel, reference, UNSPLIT, &mut rng, &mut scratch, None),
                                     None => path.sample(ctx, pixel, &(), &mut rng, &mut scratch),
                                 };
                                 let v = if v.is_finite() { v } else { Vec3A::ZERO };
@@ -504,6 +557,15 @@ fn found_environment<A: Accel>(ctx: &RenderContext<A>, dir: Vec3A, pdf: f32) -> 
     if env == Vec3A::ZERO { env } else { env * power_heuristic(pdf, ctx.scene.lights.environment_pdf(dir)) }
 }
 
+/// What one training iteration returns ([`LearnedZvidpt::train_pass`]).
+struct TrainPass {
+    deposits: Deposits,
+    sum: Vec<[f64; 3]>,
+    sum_sq: Vec<[f64; 3]>,
+    seen: Vec<[f64; 4]>,
+    rays: u64,
+}
+
 /// What a learned walk carries from vertex to vertex.
 #[derive(Clone, Copy, Debug)]
 struct WalkState {
@@ -515,6 +577,12 @@ struct WalkState {
     depth: u32,
     /// How many walks this one's splits have made of the camera sample so far.
     branches: u32,
+    /// Whether every scatter from the camera to here was a delta lobe: emission found next
+    /// behind a delta lobe is the pixel's seen light (recorded in `Scratch::seen`).
+    prefix: bool,
+    /// Whether the pixel's seen light is estimated apart ([`super::seen`]): the walk leaves
+    /// it out.
+    split_seen: bool,
 }
 
 /// What a learned walk reads at every vertex: the integrator's settings, the render and the
@@ -532,6 +600,7 @@ impl<A: Accel> Walker<'_, A> {
         &self,
         pixel: UVec2,
         reference: f32,
+        strata: u8,
         rng: &mut SampleStream,
         scratch: &mut Scratch,
         deposits: Option<&mut Deposits>,
@@ -547,14 +616,12 @@ impl<A: Accel> Walker<'_, A> {
             return ctx.scene.lights.environment(ray.dir);
         };
         let si = ctx.scene.interaction(&ray, &hit);
-        si.emitted()
-            + self.reflected(
-                &si,
-                WalkState { weight: Vec3A::ONE, reference, depth: 0, branches: 1 },
-                rng,
-                scratch,
-                deposits,
-            )
+        let emitted = si.emitted();
+        scratch.seen += emitted;
+        let split = strata > UNSPLIT;
+        let walk = WalkState { weight: Vec3A::ONE, reference, depth: 0, branches: 1, prefix: true, split_seen: split };
+        let reflected = self.reflected(&si, walk, rng, scratch, deposits);
+        if split { reflected + split_seen(ctx, pixel, strata, rng, scratch) } else { emitted + reflected }
     }
 
     /// An unbiased estimate of `Lr` leaving `si` towards `si.wo`, from a walk (tree, when
@@ -664,6 +731,7 @@ impl<A: Accel> Walker<'_, A> {
                             weight: weight * throughput / f,
                             depth: depth + 1,
                             branches: branches * n,
+                            prefix: false,
                             ..walk
                         };
                         seen + self.reflected(&next, walk, rng, scratch, deposits.as_deref_mut())
@@ -779,8 +847,13 @@ impl<A: Accel> Walker<'_, A> {
             return direct + throughput * env;
         };
         let next = ctx.scene.interaction(&ray, &hit);
+        let prefix = walk.prefix && s.delta;
         let seen = if s.delta {
-            next.emitted()
+            let e = next.emitted();
+            if prefix {
+                scratch.seen += weight * throughput * e;
+            }
+            if prefix && walk.split_seen { Vec3A::ZERO } else { e }
         } else if weigh.surfaces {
             self.found_emission(si, &next, s.pdf)
         } else {
@@ -789,7 +862,7 @@ impl<A: Accel> Walker<'_, A> {
         let li = seen
             + self.reflected(
                 &next,
-                WalkState { weight: weight * throughput, depth: depth + 1, ..walk },
+                WalkState { weight: weight * throughput, depth: depth + 1, prefix, ..walk },
                 rng,
                 scratch,
                 deposits,
@@ -815,7 +888,7 @@ impl<A: Accel> Walker<'_, A> {
 }
 
 impl Integrator for LearnedZvidpt {
-    type PixelState = f32;
+    type PixelState = PixelSetup;
 
     fn name(&self) -> &'static str {
         match self.settings.roulette {
@@ -852,6 +925,8 @@ impl Integrator for LearnedZvidpt {
         self.path = None;
         self.split = true;
         let mut path_probe = None;
+        let mut seen_stats = SeenStats::default();
+        self.seen = None;
         let path = PathTracer { mis: self.settings.mis, ..PathTracer::default() };
         for k in 0..16u32 {
             let spp = 1u32 << k;
@@ -878,9 +953,10 @@ impl Integrator for LearnedZvidpt {
             }
             let t = Instant::now();
             guide.begin_iteration();
-            let (deposits, sum, sum_sq) = self.train_pass(ctx, &guide, seed, spp);
-            guide.end_iteration(k, deposits)?;
-            prior.add_pass(spp, &sum, &sum_sq);
+            let pass = self.train_pass(ctx, &guide, seed, spp);
+            guide.end_iteration(k, pass.deposits)?;
+            prior.add_pass(spp, &pass.sum, &pass.sum_sq);
+            seen_stats.add(spp, &pass.seen, pass.rays);
             self.iterations.push(Iteration { spp, seconds: t.elapsed().as_secs_f64() });
             // The first judgement, as soon as the guide has its minimum training: a walk that
             // loses clearly stops the training there.
@@ -908,6 +984,14 @@ impl Integrator for LearnedZvidpt {
                 self.path = Some(path.clone());
             }
         }
+        // Where to split the seen light: from the training's per-pixel variances of it and of
+        // the rest, and the lights' projection; the walk's cost in rays per sample.
+        if self.settings.seen_strata > UNSPLIT && !seen_stats.sums.is_empty() {
+            let samples = seen_stats.samples as f64 * seen_stats.sums.len() as f64;
+            let cost = seen_stats.rays as f64 / samples.max(1.0);
+            let projected = projected_variance(ctx);
+            self.seen = Some(plan(width, &seen_stats, &projected, cost, self.settings.seen_strata));
+        }
         // The last pass stays unweighed: the image weighs it against the final passes.
         self.prior = (!prior.is_empty()).then_some(prior);
         let stats = guide.stats();
@@ -930,8 +1014,14 @@ impl Integrator for LearnedZvidpt {
             ),
             None => String::new(),
         };
+        let seen = match self.seen.as_ref().map(SeenPlan::split_pixels) {
+            Some((n, m)) if n > 0 => {
+                format!("; seen light split over the pixel in {n} pixels (up to {m}x{m} film points)")
+            }
+            _ => String::new(),
+        };
         Ok(Some(format!(
-            "photon seed {:.3} s; guide {stats}; training {} spp ({}) in {:.2} s, {} of them in the image{choice}",
+            "photon seed {:.3} s; guide {stats}; training {} spp ({}) in {:.2} s, {} of them in the image{choice}{seen}",
             seeded,
             self.training_spp(),
             if training.is_empty() { "none".to_string() } else { training.join("+") },
@@ -953,27 +1043,34 @@ impl Integrator for LearnedZvidpt {
         if self.iterations.is_empty() { 0 } else { 1 << self.iterations.len() }
     }
 
-    fn setup_pixel<A: Accel>(&self, ctx: &RenderContext<A>, pixel: UVec2, seed: u64, scratch: &mut Scratch) -> f32 {
+    fn setup_pixel<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        pixel: UVec2,
+        seed: u64,
+        scratch: &mut Scratch,
+    ) -> PixelSetup {
+        let strata = self.seen.as_ref().map_or(UNSPLIT, |p| p.strata(pixel));
         if self.path.is_some() {
-            return 0.0;
+            return PixelSetup { reference: 0.0, strata };
         }
         let guide = self.guide.as_ref().expect("prepare() builds the guide");
-        self.pixel_reference(ctx, guide, pixel, seed, scratch)
+        PixelSetup { reference: self.pixel_reference(ctx, guide, pixel, seed, scratch), strata }
     }
 
     fn sample<A: Accel>(
         &self,
         ctx: &RenderContext<A>,
         pixel: UVec2,
-        reference: &f32,
+        setup: &PixelSetup,
         rng: &mut SampleStream,
         scratch: &mut Scratch,
     ) -> Vec3A {
         if let Some(path) = &self.path {
-            return path.sample(ctx, pixel, &(), rng, scratch);
+            return path.sample_seen_split(ctx, pixel, setup.strata, rng, scratch);
         }
         let guide = self.guide.as_ref().expect("prepare() builds the guide");
-        Walker { zvidpt: self, ctx, guide }.camera_sample(pixel, *reference, rng, scratch, None)
+        Walker { zvidpt: self, ctx, guide }.camera_sample(pixel, setup.reference, setup.strata, rng, scratch, None)
     }
 }
 

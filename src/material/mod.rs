@@ -188,6 +188,14 @@ impl Bsdf {
         )
     }
 
+    /// Whether some direction it scatters to is a delta lobe (a mirror, smooth glass, a smooth
+    /// plastic's coat).
+    #[inline]
+    #[must_use]
+    pub fn has_delta_lobe(&self) -> bool {
+        self.is_delta() || matches!(self, Bsdf::Plastic { coat: None, .. })
+    }
+
     /// Whether light passes through (both sides are lit and seen).
     #[inline]
     #[must_use]

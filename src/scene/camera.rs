@@ -96,6 +96,21 @@ impl Camera {
         let y = (1.0 - 2.0 * film.y / self.full.y) * self.tan_half_fov;
         Ray::new(self.eye, (self.right * x + self.up * y + self.forward).normalize())
     }
+    /// The film point (in this image's pixels, as [`Self::ray`] takes them) whose ray passes
+    /// through `p`; `None` behind the camera or within a millionth of its plane.
+    #[must_use]
+    pub fn project(&self, p: Vec3A) -> Option<Vec2> {
+        let d = p - self.eye;
+        let z = d.dot(self.forward);
+        if z.is_nan() || z <= 1e-6 * d.length() {
+            return None;
+        }
+        let aspect = self.full.x / self.full.y;
+        let x = d.dot(self.right) / (z * self.tan_half_fov * aspect);
+        let y = d.dot(self.up) / (z * self.tan_half_fov);
+        let film = Vec2::new((x + 1.0) * 0.5 * self.full.x, (1.0 - y) * 0.5 * self.full.y) - self.offset;
+        film.is_finite().then_some(film)
+    }
 }
 
 #[cfg(test)]
@@ -115,6 +130,15 @@ mod tests {
             assert_eq!(r.origin, Vec3A::new(0.0, 0.0, 3.4));
         }
         assert!(Camera::new(Vec3A::ZERO, Vec3A::ZERO, Vec3A::Y, 45.0, 1, 1).is_none());
+        // Projection inverts the ray, cropped or mirrored too, and refuses points behind.
+        for cam in [cam.clone(), cam.cropped([100, 50, 64, 48]).unwrap(), cam.mirrored()] {
+            for (u, v) in [(0.5, 0.25), (30.0, 20.0), (63.5, 47.0)] {
+                let r = cam.ray(Vec2::new(u, v));
+                let f = cam.project(r.origin + 2.5 * r.dir).unwrap();
+                assert!((f - Vec2::new(u, v)).length() < 1e-3, "{u},{v}: {f}");
+                assert!(cam.project(r.origin - r.dir).is_none());
+            }
+        }
         assert!(Camera::new(Vec3A::ZERO, Vec3A::Y, Vec3A::Y, 45.0, 1, 1).is_none());
     }
 

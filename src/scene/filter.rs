@@ -41,7 +41,9 @@ impl FilterShape {
     /// The box of radius ½: one pixel.
     pub const PIXEL: FilterShape = FilterShape::Box { radius: [0.5, 0.5] };
 
-    fn radius(&self) -> [f32; 2] {
+    /// Half-width of the filter's support per axis, in pixels.
+    #[must_use]
+    pub fn radius(&self) -> [f32; 2] {
         match *self {
             FilterShape::Box { radius } | FilterShape::Gaussian { radius, .. } | FilterShape::Tent { radius } => radius,
         }

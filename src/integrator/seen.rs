@@ -1,0 +1,273 @@
+//! Light the camera sees, split over the pixel.
+//!
+//! Where a light smaller than a pixel is seen directly (or through mirrors and glass), a
+//! pixel's error is how often its film points land on the light: the walk behind the first
+//! hit cannot help, and the rest of the pixel may already be nearly noiseless. The *seen*
+//! term, emission met along the camera's prefix of delta scatters (the first hit's own
+//! emission, then emission behind each delta lobe while every scatter so far was delta), is
+//! estimated apart in such pixels: the walk skips it, and `m × m` stratified film points of
+//! the pixel trace the prefix again and average what they see. Every camera sample's
+//! expected value is unchanged for any `m ≥ 1` (the walk's remaining terms and the strata's
+//! mean are each unbiased for their share), so `m` may come from anything but the final
+//! render's own samples: here from the training iterations' per-pixel variances of the two
+//! parts and from the emitters' projections onto the film (a light too small for training to
+//! have met is still found).
+use super::{RenderContext, Scratch, sample_bsdf};
+use crate::accel::Accel;
+use crate::geometry::{Ray, UVec2, Vec2, Vec3A};
+use crate::sampler::{SampleStream, survival_probability};
+
+/// Strata per axis where nothing is split.
+pub const UNSPLIT: u8 = 1;
+
+/// Each pixel's strata per axis (`m`; `m × m` film points per camera sample; 1: not split).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SeenPlan {
+    width: u32,
+    strata: Vec<u8>,
+}
+
+impl SeenPlan {
+    /// Strata per axis of `pixel`.
+    #[inline]
+    #[must_use]
+    pub fn strata(&self, pixel: UVec2) -> u8 {
+        self.strata.get((pixel.y * self.width + pixel.x) as usize).copied().unwrap_or(UNSPLIT)
+    }
+
+    /// Pixels split, and the most strata per axis of any.
+    #[must_use]
+    pub fn split_pixels(&self) -> (usize, u8) {
+        let split = self.strata.iter().filter(|&&m| m > UNSPLIT).count();
+        (split, self.strata.iter().copied().max().unwrap_or(UNSPLIT))
+    }
+}
+
+/// Per-pixel sums of the training samples' seen term and of the rest (each summed over the
+/// three channels), from which [`plan`] reads their variances.
+#[derive(Clone, Debug, Default)]
+pub struct SeenStats {
+    /// Samples per pixel summed.
+    pub samples: u64,
+    /// Σ seen, Σ seen², Σ rest, Σ rest² per pixel (row-major).
+    pub sums: Vec<[f64; 4]>,
+    /// Rays the summed samples traced.
+    pub rays: u64,
+}
+
+impl SeenStats {
+    /// Adds one pass of `spp` samples per pixel.
+    pub fn add(&mut self, spp: u32, sums: &[[f64; 4]], rays: u64) {
+        if self.sums.is_empty() {
+            self.sums = vec![[0.0; 4]; sums.len()];
+        }
+        for (a, b) in self.sums.iter_mut().zip(sums) {
+            for k in 0..4 {
+                a[k] += b[k];
+            }
+        }
+        self.samples += u64::from(spp);
+        self.rays += rays;
+    }
+}
+
+/// The emission along the camera's delta prefix through film point `film`, with the
+/// throughput of its delta scatters (roulette by albedo after 3, as the walks). Paths of at
+/// most `ctx.max_depth` segments.
+#[inline]
+pub fn seen_emission<A: Accel>(
+    ctx: &RenderContext<A>,
+    film: Vec2,
+    rng: &mut SampleStream,
+    scratch: &mut Scratch,
+) -> Vec3A {
+    let mut ray = ctx.scene.camera.ray(film);
+    let (mut weight, mut seen) = (Vec3A::ONE, Vec3A::ZERO);
+    let mut segments = 1u32;
+    loop {
+        scratch.rays += 1;
+        if segments > ctx.max_depth {
+            return seen;
+        }
+        let Some(hit) = ctx.accel.intersect(&ray) else {
+            return seen;
+        };
+        let si = ctx.scene.interaction(&ray, &hit);
+        seen += weight * si.emitted();
+        if !si.material.bsdf.has_delta_lobe() {
+            return seen;
+        }
+        let depth = segments - 1;
+        let q = if depth >= 3 { survival_probability(si.material.albedo()) } else { 1.0 };
+        let q = if depth >= 32 { q.min(0.8) } else { q };
+        if q <= 0.0 || rng.next_f32() >= q {
+            return seen;
+        }
+        let frame = si.bsdf_frame();
+        let Some(s) = sample_bsdf(&si, &frame, frame.to_local(si.wo), rng) else {
+            return seen;
+        };
+        if !s.delta {
+            return seen;
+        }
+        weight *= s.weight / q;
+        ray = si.spawn_ray(s.dir);
+        segments += 1;
+    }
+}
+
+/// The seen term of `pixel` from `m × m` stratified film points (jittered in each stratum of
+/// the pixel filter's sample square), averaged.
+#[inline]
+pub fn split_seen<A: Accel>(
+    ctx: &RenderContext<A>,
+    pixel: UVec2,
+    m: u8,
+    rng: &mut SampleStream,
+    scratch: &mut Scratch,
+) -> Vec3A {
+    let m = u32::from(m.max(1));
+    let inv = 1.0 / m as f32;
+    let mut sum = Vec3A::ZERO;
+    for j in 0..m {
+        for i in 0..m {
+            let u = rng.next_2d();
+            let u = Vec2::new(((i as f32 + u.x) * inv).min(0.999_999_94), ((j as f32 + u.y) * inv).min(0.999_999_94));
+            sum += seen_emission(ctx, ctx.scene.camera.film_point(pixel, u), rng, scratch);
+        }
+    }
+    sum * (inv * inv)
+}
+
+/// The per-sample variance of the seen term (channels summed) that lights smaller than a
+/// pixel's footprint add where they project, lit side towards the camera and their centre
+/// unoccluded: a light covering a share `f` of the footprint with radiance `L` gives
+/// `L²·f·(1 − f)`. Lights of a footprint or more are left to the training's measurement.
+#[must_use]
+pub fn projected_variance<A: Accel>(ctx: &RenderContext<A>) -> Vec<f32> {
+    let camera = &ctx.scene.camera;
+    let (w, h) = (camera.width, camera.height);
+    let [rx, ry] = camera.filter.shape.radius();
+    let footprint = (4.0 * rx * ry).max(1e-6);
+    // Per pixel: the share of its footprint lights cover, and their brightest radiance.
+    let mut cover = vec![(0.0f32, 0.0f32); (w as usize) * (h as usize)];
+    for (t, tri) in ctx.scene.triangles.iter().enumerate() {
+        let material = ctx.scene.material_of(t as u32);
+        if material.emission == Vec3A::ZERO {
+            continue;
+        }
+        let centre = (tri[0] + tri[1] + tri[2]) / 3.0;
+        let ng = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+        if !material.two_sided_emission && ng.dot(camera.eye - centre) <= 0.0 {
+            continue;
+        }
+        let (Some(a), Some(b), Some(c)) = (camera.project(tri[0]), camera.project(tri[1]), camera.project(tri[2]))
+        else {
+            continue;
+        };
+        let area = 0.5 * ((b - a).perp_dot(c - a)).abs();
+        if area.is_nan() || area >= footprint {
+            continue;
+        }
+        let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
+        // Pixels whose footprint [x + ½ − r, x + ½ + r] meets the light's box.
+        let x0 = (lo.x - 0.5 - rx).ceil().max(0.0);
+        let x1 = (hi.x - 0.5 + rx).floor().min(w as f32 - 1.0);
+        let y0 = (lo.y - 0.5 - ry).ceil().max(0.0);
+        let y1 = (hi.y - 0.5 + ry).floor().min(h as f32 - 1.0);
+        if x0 > x1 || y0 > y1 {
+            continue;
+        }
+        let to_centre = centre - camera.eye;
+        let distance = to_centre.length();
+        if ctx.accel.occluded(&Ray::new(camera.eye, to_centre / distance), distance * (1.0 - 1e-4)) {
+            continue;
+        }
+        let radiance = material.emission.element_sum();
+        for y in y0 as u32..=y1 as u32 {
+            for x in x0 as u32..=x1 as u32 {
+                let c = &mut cover[(y * w + x) as usize];
+                c.0 += area / footprint;
+                c.1 = c.1.max(radiance);
+            }
+        }
+    }
+    cover
+        .into_iter()
+        .map(|(f, l)| {
+            let f = f.min(1.0);
+            l * l * f * (1.0 - f)
+        })
+        .collect()
+}
+
+/// Each pixel's strata: `m² ≈ √(V_seen / V_rest · cost)`, the split that minimizes variance ×
+/// cost when a sample's walk costs `cost` rays and each extra film point one, at most
+/// `max_strata` per axis. `V_seen` is the larger of the training's measurement and the
+/// lights' projection ([`projected_variance`]); `V_rest` is floored at a thousandth of the
+/// image's mean, so a black pixel around a light does not ask for unbounded strata. All split
+/// pixels together add at most half the walk's rays per pass (strata lowered evenly until
+/// they fit).
+#[must_use]
+pub fn plan(width: u32, stats: &SeenStats, projected: &[f32], cost: f64, max_strata: u8) -> SeenPlan {
+    let n = stats.samples.max(1) as f64;
+    let variance = |sum: f64, sq: f64| (sq / n - (sum / n) * (sum / n)).max(0.0);
+    let rest: Vec<f64> = stats.sums.iter().map(|s| variance(s[2], s[3])).collect();
+    let mean_rest = rest.iter().sum::<f64>() / rest.len().max(1) as f64;
+    let floor = (1e-3 * mean_rest).max(1e-12);
+    let cost = cost.max(1.0);
+    let mut strata: Vec<u8> = stats
+        .sums
+        .iter()
+        .zip(&rest)
+        .enumerate()
+        .map(|(i, (s, &r))| {
+            let seen = variance(s[0], s[1]).max(f64::from(projected.get(i).copied().unwrap_or(0.0)));
+            let k = (seen / r.max(floor) * cost).sqrt();
+            let m = k.sqrt().round();
+            if m.is_finite() { m.clamp(1.0, f64::from(max_strata.max(1))) as u8 } else { UNSPLIT }
+        })
+        .collect();
+    let budget = 0.5 * cost * strata.len() as f64;
+    let extra = |strata: &[u8]| strata.iter().filter(|&&m| m > 1).map(|&m| f64::from(m) * f64::from(m)).sum::<f64>();
+    while extra(&strata) > budget {
+        for m in &mut strata {
+            *m = m.saturating_sub(1).max(UNSPLIT);
+        }
+    }
+    SeenPlan { width, strata }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn stats(sums: Vec<[f64; 4]>, samples: u64) -> SeenStats {
+        SeenStats { samples, sums, rays: 0 }
+    }
+
+    /// A pixel whose variance is all in its seen term splits up to the cap; one without a seen
+    /// term does not; a projected light counts where training met none; the budget holds.
+    #[test]
+    fn plan_splits_where_the_seen_term_dominates() {
+        // Pixel 0: seen 0 or 10 (variance 25), rest 1 ± 0.1; the 199 others: no seen term
+        // (a budget of 0.5 × 8 × 200 = 800 extra rays: room for both splits below).
+        let mut sums = vec![[0.0, 0.0, 4.0, 4.0 * 1.01]; 200];
+        sums[0] = [5.0 * 4.0, 50.0 * 4.0, 4.0, 4.0 * 1.01];
+        let p = plan(200, &stats(sums.clone(), 4), &[], 8.0, 8);
+        assert_eq!(p.strata(UVec2::new(0, 0)), 8);
+        assert_eq!(p.strata(UVec2::new(1, 0)), 1);
+        assert_eq!(p.split_pixels(), (1, 8));
+        let p = plan(200, &stats(sums.clone(), 4), &[0.0, 25.0], 8.0, 8);
+        assert_eq!(p.strata(UVec2::new(1, 0)), 8);
+        // On two pixels the same split would cost 64 rays against a budget of 8: lowered.
+        let p = plan(2, &stats(sums[..2].to_vec(), 4), &[], 8.0, 8);
+        assert_eq!(p.strata(UVec2::new(0, 0)), 2);
+        // A thousand pixels all asking for 8×8 cannot have them: half the walk's rays in all.
+        let many = vec![[5.0 * 4.0, 50.0 * 4.0, 4.0, 4.0 * 1.01]; 1000];
+        let p = plan(1000, &stats(many, 4), &[], 8.0, 8);
+        let (split, most) = p.split_pixels();
+        assert!(split * usize::from(most) * usize::from(most) <= 4000, "{split} pixels at {most}");
+        assert_eq!(plan(2, &stats(vec![[0.0; 4]; 2], 4), &[], 8.0, 8).split_pixels(), (0, 1));
+    }
+}
