@@ -94,3 +94,95 @@ pub fn cli(data: &[u8]) {
         let _ = crate::cli::validate(&cli);
     }
 }
+
+/// Batch job files and the Slurm scripts written for them: the job file parsed (defaults,
+/// jobs, matrices, output templates), and for every job that may be scripted, its task and
+/// merge scripts. Whatever the fields hold, each script must have exactly the lines it is
+/// built from outside quotes and comments (a newline that ended a comment or a quoted word
+/// would start a command of the job's own text).
+pub fn slurm_script(data: &[u8]) {
+    let _ = slurm_scripts_checked(data);
+}
+
+/// [`slurm_script`], returning how many scripts it checked.
+fn slurm_scripts_checked(data: &[u8]) -> usize {
+    use crate::batch::slurm::{SlurmOptions, Split, check_scriptable, scripts, split_of};
+    let mut checked = 0;
+    let Ok(text) = std::str::from_utf8(data) else { return checked };
+    let base = scene_folder();
+    let Ok(jobs) = crate::batch::parse(text, &base.join("jobs.toml"), &base) else { return checked };
+    let options = SlurmOptions {
+        tasks: 3,
+        cpus_per_task: 1,
+        sbatch_args: Vec::new(),
+        exe: "/opt/zvidpt's bin/zvidpt".into(),
+        workdir: ".".into(),
+    };
+    for job in jobs.iter().take(64) {
+        if check_scriptable(job, &options).is_err() {
+            continue;
+        }
+        let Ok(split) = split_of(job, options.tasks) else { continue };
+        let (task, merge) = scripts(job, &split, &options);
+        let task_lines = if split == Split::Whole { 4 } else { 7 };
+        for (script, lines) in std::iter::once((task, task_lines)).chain(merge.map(|m| (m, 6))) {
+            assert_eq!(shell_lines(&script), lines, "a job field made a line of its own:\n{script}");
+            checked += 1;
+        }
+    }
+    checked
+}
+
+/// Newlines of a `sh` script outside single and double quotes, backslash escapes and
+/// comments' text: the script's lines as the shell reads them.
+fn shell_lines(script: &str) -> usize {
+    let (mut lines, mut single, mut double, mut escaped, mut comment) = (0, false, false, false, false);
+    let mut previous = '\n';
+    for c in script.chars() {
+        if comment {
+            if c == '\n' {
+                comment = false;
+                lines += 1;
+            }
+        } else if escaped {
+            escaped = false;
+        } else if single {
+            single = c != '\'';
+        } else {
+            match c {
+                '\\' => escaped = true,
+                '"' => double = !double,
+                '\'' if !double => single = true,
+                '#' if !double && previous.is_whitespace() => comment = true,
+                '\n' if !double => lines += 1,
+                _ => {}
+            }
+        }
+        previous = c;
+    }
+    lines
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The script check counts the shell's lines: quoted newlines, escapes and comments'
+    /// text do not start lines; a newline outside them does.
+    #[test]
+    fn shell_lines_follow_the_shell() {
+        assert_eq!(shell_lines("a 'x\ny' \"p\nq\" b\n"), 1);
+        assert_eq!(shell_lines("# it's a comment\nexec 'a'\\''b'\n"), 2);
+        assert_eq!(shell_lines("x=a#b\ntouch y\n"), 2);
+        assert_eq!(shell_lines("echo 'a'\ntouch y\n#'\n"), 3);
+    }
+
+    /// The seed corpus reaches the scripts (a job file the parser refused would test only
+    /// the parser), and a field with a newline in it is kept inside its quotes.
+    #[test]
+    fn slurm_corpus_writes_scripts() {
+        let corpus = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/corpus/slurm_script/fields.toml");
+        let checked = slurm_scripts_checked(&std::fs::read(corpus).unwrap());
+        assert!(checked >= 10, "{checked} scripts checked");
+    }
+}

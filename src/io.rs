@@ -56,6 +56,28 @@ pub fn read_text(path: &Path, limit: u64, what: &str) -> Result<String> {
     })
 }
 
+/// Bytes this process may still allocate, where the system says: the smaller of the
+/// memory the kernel reports available (`MemAvailable`) and what is left of the address-space
+/// limit (`ulimit -v`) beyond the process's present size. `None` where neither is known.
+#[must_use]
+pub fn memory_available() -> Option<u64> {
+    let field = |text: &str, name: &str| -> Option<u64> {
+        let line = text.lines().find(|l| l.starts_with(name))?;
+        line.split_whitespace().nth(1)?.parse::<u64>().ok().map(|kib| kib * 1024)
+    };
+    let available = std::fs::read_to_string("/proc/meminfo").ok().and_then(|t| field(&t, "MemAvailable:"));
+    let headroom = std::fs::read_to_string("/proc/self/limits").ok().and_then(|limits| {
+        let line = limits.lines().find(|l| l.starts_with("Max address space"))?;
+        let limit: u64 = line.split_whitespace().nth(3)?.parse().ok()?;
+        let size = std::fs::read_to_string("/proc/self/status").ok().and_then(|t| field(&t, "VmSize:"))?;
+        Some(limit.saturating_sub(size))
+    });
+    match (available, headroom) {
+        (Some(a), Some(h)) => Some(a.min(h)),
+        (a, h) => a.or(h),
+    }
+}
+
 /// The process's peak resident memory (Linux's `VmHWM`), where the system reports it.
 #[must_use]
 pub fn peak_memory_bytes() -> Option<u64> {

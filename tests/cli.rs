@@ -1,19 +1,18 @@
 //! The command line: a smoke test of `render`, `info` and `diff`, and every bad input the
 //! foundation issue lists, each of which must print one `error:` line, exit non-zero and write
 //! no output file.
-use std::path::{Path, PathBuf};
+mod common;
+use common::cli::Scratch;
+use std::path::Path;
 use std::process::{Command, Output};
 
 fn zvidpt(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_zvidpt")).args(args).env_remove("RUST_BACKTRACE").output().expect("binary runs")
 }
 
-/// A fresh scratch folder per test.
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("zvidpt-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A fresh scratch folder per test, removed when it ends.
+fn scratch(name: &str) -> Scratch {
+    common::cli::scratch("cli", name)
 }
 
 fn repo(p: &str) -> String {
@@ -32,7 +31,7 @@ fn camera(w: u32, h: u32) -> String {
 }
 
 /// Writes a scene folder with `scene.toml` = `toml` and `box.obj` = `obj`.
-fn scene_dir(name: &str, toml: &str, obj: &str) -> PathBuf {
+fn scene_dir(name: &str, toml: &str, obj: &str) -> Scratch {
     let d = scratch(name);
     std::fs::write(d.join("scene.toml"), toml).unwrap();
     std::fs::write(d.join("box.obj"), obj).unwrap();

@@ -66,3 +66,8 @@ fn image_corpus() {
 fn cli_corpus() {
     assert!(replay("cli", zvidpt::fuzzing::cli) >= 5);
 }
+
+#[test]
+fn slurm_script_corpus() {
+    assert!(replay("slurm_script", zvidpt::fuzzing::slurm_script) >= 3);
+}

@@ -1,7 +1,9 @@
 //! Adversarial inputs (the hardening issue): outputs that must not be replaced, sizes a user or
 //! a file controls, signals while writing, the parser's messages, and nonsense that used to
 //! be accepted silently. Each test names the class it covers.
-use std::path::{Path, PathBuf};
+mod common;
+use common::cli::Scratch;
+use std::path::Path;
 use std::process::{Command, Output, Stdio};
 
 fn zvidpt_in(dir: Option<&Path>, args: &[&str]) -> Output {
@@ -17,11 +19,8 @@ fn zvidpt(args: &[&str]) -> Output {
     zvidpt_in(None, args)
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("zvidpt-hard-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn scratch(name: &str) -> Scratch {
+    common::cli::scratch("hard", name)
 }
 
 fn s(p: &Path) -> &str {
@@ -36,7 +35,7 @@ fn camera(w: u32, h: u32) -> String {
 }
 
 /// A scene folder with `scene.toml`, `box.obj` = `obj` and `box.mtl`.
-fn scene(name: &str, obj: &str) -> PathBuf {
+fn scene(name: &str, obj: &str) -> Scratch {
     let d = scratch(name);
     std::fs::write(d.join("scene.toml"), format!("{}[[mesh]]\nobj = \"box.obj\"\n", camera(8, 8))).unwrap();
     std::fs::write(d.join("box.obj"), obj).unwrap();
@@ -555,5 +554,42 @@ fn missing_files_are_reported_where_the_scene_names_them() {
     std::fs::write(d.join("box.obj"), LIGHT).unwrap();
     std::fs::write(d.join("box.mtl"), MTL).unwrap();
     fails_with(&zvidpt(&["render", s(&d), "-o", s(&out), "-q", "--spp", "1"]), "scene.toml: texture `t`: ");
+    assert!(!out.exists());
+}
+
+/// An include that names no file, or one that cannot be read, is an error at the including
+/// file's line (pbrt-v4 `Include`/`Import`, Mitsuba 3 `<include>`): it was ": No such file or
+/// directory", without a file or line.
+#[test]
+fn includes_are_reported_where_the_scene_names_them() {
+    let d = scratch("includes");
+    let out = d.join("o.exr");
+    let render = |file: &str| zvidpt(&["render", s(&d.join(file)), "-o", s(&out), "-q", "--spp", "1"]);
+    std::fs::write(d.join("empty.pbrt"), "Camera \"perspective\"\nInclude \"\"\nWorldBegin\n").unwrap();
+    fails_with(&render("empty.pbrt"), "empty.pbrt: line 2: the include names no file");
+    std::fs::write(d.join("import.pbrt"), "Camera \"perspective\"\nWorldBegin\n\nImport \"gone.pbrt\"\n").unwrap();
+    fails_with(&render("import.pbrt"), "import.pbrt: line 4: cannot include ");
+    std::fs::write(d.join("empty.xml"), "<scene version=\"3.0.0\">\n<include filename=\"\"/>\n</scene>\n").unwrap();
+    fails_with(&render("empty.xml"), "empty.xml: line 2: the include names no file");
+    std::fs::write(d.join("gone.xml"), "<scene version=\"3.0.0\">\n\n<include filename=\"missing.xml\"/>\n</scene>\n")
+        .unwrap();
+    fails_with(&render("gone.xml"), "gone.xml: line 3: cannot include ");
+    assert!(!out.exists());
+}
+
+/// Under an address-space limit (`ulimit -v`) a render too large for it is refused with one
+/// line before allocating, instead of aborting ("memory allocation of … failed", exit 134).
+#[test]
+fn a_render_larger_than_the_memory_left_is_refused() {
+    let d = scratch("memory");
+    let out = d.join("o.exr");
+    let command = format!(
+        "ulimit -v 600000 && exec '{}' render '{}/scenes/cornell-paper' --resolution 8000x8000 --spp 1 -q -o '{}'",
+        env!("CARGO_BIN_EXE_zvidpt"),
+        env!("CARGO_MANIFEST_DIR"),
+        out.display()
+    );
+    let o = Command::new("sh").arg("-c").arg(&command).env_remove("RUST_BACKTRACE").output().unwrap();
+    fails_with(&o, "a 8000x8000 render needs about");
     assert!(!out.exists());
 }

@@ -5,7 +5,6 @@
 //! this machine the test says so and passes without running.
 mod common;
 use common::cli::*;
-use std::path::PathBuf;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
@@ -40,9 +39,7 @@ fn a_slurm_array_merges_into_the_pixels_of_one_render() {
         String::from_utf8_lossy(&sinfo.stderr)
     );
     let start = Instant::now();
-    let dir: PathBuf = std::env::temp_dir().join(format!("zvidpt-slurm-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch("slurm", "cluster");
     let scene = format!("{}/scenes/cornell-paper", env!("CARGO_MANIFEST_DIR"));
     let jobs = dir.join("jobs.toml");
     std::fs::write(

@@ -97,7 +97,7 @@ fn comment(s: &str) -> String {
 }
 
 /// Refuses a job whose words cannot stand in a shell script: a NUL byte has no quoting.
-fn check_scriptable(job: &Job, options: &SlurmOptions) -> Result<()> {
+pub(crate) fn check_scriptable(job: &Job, options: &SlurmOptions) -> Result<()> {
     let words = job.args.iter().map(String::as_str).chain([job.origin.as_str()]);
     let paths = [&job.output, &options.exe, &options.workdir].map(|p| p.to_string_lossy().into_owned());
     if words.chain(paths.iter().map(String::as_str)).any(|w| w.contains('\0')) {

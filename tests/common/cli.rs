@@ -14,12 +14,42 @@ pub fn bin() -> Command {
     c
 }
 
-/// An empty folder `zvidpt-TEST-NAME-PID` in the temporary folder.
-pub fn scratch(test: &str, name: &str) -> PathBuf {
+/// An empty folder `zvidpt-TEST-NAME-PID` in the temporary folder, removed with what it
+/// holds when the test ends (passed or failed).
+pub fn scratch(test: &str, name: &str) -> Scratch {
     let d = std::env::temp_dir().join(format!("zvidpt-{test}-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
-    d
+    Scratch(d)
+}
+
+/// A test's scratch folder ([`scratch`]): a path, removed when dropped.
+#[derive(Debug)]
+pub struct Scratch(PathBuf);
+
+impl std::ops::Deref for Scratch {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for Scratch {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<std::ffi::OsStr> for Scratch {
+    fn as_ref(&self) -> &std::ffi::OsStr {
+        self.0.as_os_str()
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
 }
 
 /// Standard output and error together, for assertion messages.

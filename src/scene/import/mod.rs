@@ -59,17 +59,24 @@ impl Includes {
         Self { depth: 0, files: vec![main.to_path_buf()] }
     }
 
-    /// Reads the file `path` included at `at`, refused where includes nest deeper than
-    /// [`MAX_INCLUDE_DEPTH`] or more than [`MAX_INCLUDES`] files were read; the caller reads
-    /// its text, then calls [`Includes::leave`].
-    pub(crate) fn enter(&mut self, path: &Path, at: &At) -> Result<String> {
+    /// Reads the file `path` (written `name`) included at `at`, refused where includes nest
+    /// deeper than [`MAX_INCLUDE_DEPTH`] or more than [`MAX_INCLUDES`] files were read; the
+    /// caller reads its text, then calls [`Includes::leave`]. An empty name, or a file that
+    /// cannot be read, is an error at `at` (the including file and line).
+    pub(crate) fn enter(&mut self, name: &str, path: &Path, at: &At) -> Result<String> {
+        if name.trim().is_empty() {
+            return Err(syntax(at, "the include names no file (an empty path)"));
+        }
         if self.depth >= MAX_INCLUDE_DEPTH {
             return Err(syntax(at, format!("includes nest deeper than {MAX_INCLUDE_DEPTH} (a cycle?)")));
         }
         if self.files.len() > MAX_INCLUDES {
             return Err(syntax(at, format!("more than {MAX_INCLUDES} included files")));
         }
-        let text = crate::io::read_text(path, MAX_SCENE_BYTES, "included file")?;
+        let text = crate::io::read_text(path, MAX_SCENE_BYTES, "included file").map_err(|e| match e {
+            Error::Io { .. } => syntax(at, format!("cannot include {e}")),
+            e => e,
+        })?;
         self.files.push(path.to_path_buf());
         self.depth += 1;
         Ok(text)

@@ -125,7 +125,7 @@ impl Reader<'_> {
                 "include" => {
                     let name = self.required(child, "filename", &at)?;
                     let path = resolve(&self.includes.files[0], file, &name);
-                    let text = self.includes.enter(&path, &at)?;
+                    let text = self.includes.enter(&name, &path, &at)?;
                     let included = self.read_document(&path, &text)?;
                     self.includes.leave();
                     obj.params.extend(included.params);

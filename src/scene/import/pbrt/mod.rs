@@ -181,7 +181,7 @@ impl Parser<'_> {
             "Include" | "Import" => {
                 let name = c.text(d)?;
                 let path = self.resolve(&name);
-                let text = self.includes.enter(&path, at)?;
+                let text = self.includes.enter(&name, &path, at)?;
                 self.file(&path, &text)?;
                 self.includes.leave();
             }
