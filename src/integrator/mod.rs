@@ -99,6 +99,14 @@ pub trait Integrator: Sync + Send {
         0
     }
 
+    /// Bytes a render with it holds per pixel at its peak, about (the render refuses an image
+    /// that would not fit in the memory left): per-pixel sums and squares, the image and its
+    /// variance, the EXR encoder's copy — 114 for `path` (peak resident size between
+    /// 1024×768 and 2048×1536).
+    fn bytes_per_pixel(&self) -> u64 {
+        128
+    }
+
     /// Training iterations the pre-pass ran (learning integrators), for a checkpoint.
     fn training_iterations(&self) -> Option<u32> {
         None

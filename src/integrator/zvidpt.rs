@@ -1038,6 +1038,11 @@ impl Integrator for LearnedZvidpt {
         Some(self.iterations.len() as u32)
     }
 
+    /// With the training passes' sums and their combination: 256 measured as `path`'s 114.
+    fn bytes_per_pixel(&self) -> u64 {
+        272
+    }
+
     /// Training iteration k took samples 2^k .. 2^(k+1); the render continues the sequence.
     fn first_sample_index(&self) -> u32 {
         if self.iterations.is_empty() { 0 } else { 1 << self.iterations.len() }

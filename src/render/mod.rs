@@ -229,15 +229,11 @@ impl<S: Send + Sync> Tile<S> {
     }
 }
 
-/// Bytes a render holds per pixel at its peak, about: per-pixel sums and squares, the image and
-/// its variance, the learned integrator's training passes, the output's conversion
-/// (`cornell-paper` at 512² and 1536²: 120 bytes per pixel for `path`, 145 for `zvidpt`).
-pub const RENDER_BYTES_PER_PIXEL: u64 = 192;
-
-/// Refuses a `width × height` render that needs more memory than `available`, with one line,
-/// before its buffers are allocated (an allocation that fails aborts the process).
-fn check_memory(width: u32, height: u32, available: Option<u64>) -> Result<()> {
-    let need = u64::from(width) * u64::from(height) * RENDER_BYTES_PER_PIXEL;
+/// Refuses a `width × height` render of `per_pixel` bytes a pixel that needs more memory than
+/// `available`, with one line, before its buffers are allocated (an allocation that fails
+/// aborts the process).
+fn check_memory(width: u32, height: u32, per_pixel: u64, available: Option<u64>) -> Result<()> {
+    let need = u64::from(width) * u64::from(height) * per_pixel;
     match available {
         Some(free) if need > free => {
             let gb = |b: u64| b as f64 / f64::from(1u32 << 30);
@@ -262,7 +258,7 @@ pub fn render<A: Accel, I: Integrator>(
     if settings.spp == Some(0) {
         return Err(Error::InvalidOption("spp must be at least 1".into()));
     }
-    check_memory(scene.camera.width, scene.camera.height, crate::io::memory_available())?;
+    check_memory(scene.camera.width, scene.camera.height, integrator.bytes_per_pixel(), crate::io::memory_available())?;
     if settings.spp.is_none() && settings.time_limit.is_none() && settings.noise_target.is_none() {
         return Err(Error::InvalidOption(
             "give a sample count (--spp), a time budget (--time) or a noise target (--noise-target)".into(),
@@ -587,8 +583,8 @@ mod tests {
     /// memory refuses nothing.
     #[test]
     fn renders_that_cannot_fit_are_refused() {
-        assert!(check_memory(8000, 8000, Some(600 << 20)).unwrap_err().to_string().contains("8000x8000"));
-        assert!(check_memory(512, 384, Some(600 << 20)).is_ok());
-        assert!(check_memory(8000, 8000, None).is_ok());
+        assert!(check_memory(8000, 8000, 128, Some(600 << 20)).unwrap_err().to_string().contains("8000x8000"));
+        assert!(check_memory(512, 384, 272, Some(600 << 20)).is_ok());
+        assert!(check_memory(8000, 8000, 128, None).is_ok());
     }
 }
