@@ -593,3 +593,28 @@ fn a_render_larger_than_the_memory_left_is_refused() {
     fails_with(&o, "a 8000x8000 render needs about");
     assert!(!out.exists());
 }
+
+/// A material or light of an imported scene that fails validation is reported at the line
+/// that declared it (an area light's emission at its `AreaLightSource`, a light at its
+/// `LightSource` or `<emitter>`, a Mitsuba shape's material at its `<shape>`): the message
+/// named only the importer's own name for it (`material `emitter1``).
+#[test]
+fn imported_scene_validation_names_the_line() {
+    let d = scratch("validation-lines");
+    let out = d.join("o.exr");
+    let render = |file: &str| zvidpt(&["render", s(&d.join(file)), "-o", s(&out), "-q", "--spp", "1"]);
+    let head = "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" 45\nWorldBegin\n\n";
+    let area = "AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [1e13 1 1]\nShape \"sphere\" \"float radius\" 0.2\nAttributeEnd\n";
+    std::fs::write(d.join("area.pbrt"), format!("{head}{area}")).unwrap();
+    fails_with(&render("area.pbrt"), "area.pbrt: line 6: ");
+    let point = "LightSource \"point\" \"rgb I\" [1e13 1 1]\nShape \"sphere\" \"float radius\" 0.2\n";
+    std::fs::write(d.join("point.pbrt"), format!("{head}{point}")).unwrap();
+    fails_with(&render("point.pbrt"), "point.pbrt: line 5: light 1: intensity");
+    let film = "<sensor type=\"perspective\"><film type=\"hdrfilm\"><integer name=\"width\" value=\"8\"/><integer name=\"height\" value=\"8\"/></film></sensor>\n";
+    let xml = format!(
+        "<scene version=\"3.0.0\">\n{film}\n<shape type=\"sphere\">\n<emitter type=\"area\"><rgb name=\"radiance\" value=\"1e13\"/></emitter>\n</shape>\n<emitter type=\"point\"><rgb name=\"intensity\" value=\"1e13\"/></emitter>\n</scene>\n"
+    );
+    std::fs::write(d.join("area.xml"), xml).unwrap();
+    fails_with(&render("area.xml"), "area.xml: line 4: ");
+    assert!(!out.exists());
+}

@@ -123,6 +123,18 @@ fn located(path: &Path, d: &SceneDescription, key: &str, what: &str, e: Error) -
     }
 }
 
+/// An error in the material or light `key` names in the description's origins (`material
+/// NAME`, `light K`), moved to the imported file and line that declared it; unchanged for a
+/// TOML scene, whose errors name the item.
+fn at_origin(d: &SceneDescription, key: &str, e: Error) -> Error {
+    match (e, d.origins.get(key)) {
+        (Error::InvalidScene { message, .. }, Some((file, line))) => {
+            Error::InvalidScene { path: file.clone(), message: format!("line {line}: {message}") }
+        }
+        (e, _) => e,
+    }
+}
+
 /// The `[textures]` of a scene file, their indices by name, and the files they read.
 fn textures_from(path: &Path, d: &SceneDescription) -> Result<Textures> {
     use super::description::{FilterDescription, TextureKind, WrapDescription};
@@ -377,7 +389,8 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
     let mut material_media = Vec::new();
     for (name, m) in &d.materials {
         meshes.by_name.insert(name.clone(), meshes.materials.len() as u32);
-        meshes.materials.push(material_from(path, name, m, &texture_ids, mean_of)?);
+        let material = material_from(path, name, m, &texture_ids, mean_of);
+        meshes.materials.push(material.map_err(|e| at_origin(&d, &format!("material {name}"), e))?);
         material_media.push(media.interface_of(path, name, m)?);
     }
     let camera_medium = media.id(path, "camera", d.camera.medium.as_ref())?;
@@ -522,55 +535,61 @@ fn check_strength(path: &Path, what: &str, v: Vec3A) -> Result<()> {
     }
 }
 
+/// Light `k` of the description (a point, spot or distant light), added to `lights`.
+fn light_from(path: &Path, k: usize, l: &super::description::LightDescription, lights: &mut Lights) -> Result<()> {
+    let err = |e: Error| match e {
+        Error::InvalidOption(m) => invalid(path, format!("light {}: {m}", k + 1)),
+        other => other,
+    };
+    let need = |key: &str, v: Option<[f32; 3]>| {
+        v.map(vec3).ok_or_else(|| invalid(path, format!("light {}: a {:?} light needs `{key}`", k + 1, l.kind)))
+    };
+    let forbid = |keys: &[(&str, bool)]| match keys.iter().find(|(_, given)| *given) {
+        Some((key, _)) => Err(invalid(path, format!("light {}: `{key}` is not for {:?} lights", k + 1, l.kind))),
+        None => Ok(()),
+    };
+    match l.kind {
+        LightKind::Point => {
+            forbid(&[
+                ("direction", l.direction.is_some()),
+                ("cutoff", l.cutoff.is_some()),
+                ("beam", l.beam.is_some()),
+                ("irradiance", l.irradiance.is_some()),
+            ])?;
+            let intensity = need("intensity", l.intensity)?;
+            check_strength(path, &format!("light {}: intensity", k + 1), intensity)?;
+            let light = PointLight::point(need("position", l.position)?, intensity);
+            lights.points.push(light.map_err(err)?);
+        }
+        LightKind::Spot => {
+            forbid(&[("irradiance", l.irradiance.is_some())])?;
+            let (position, intensity) = (need("position", l.position)?, need("intensity", l.intensity)?);
+            check_strength(path, &format!("light {}: intensity", k + 1), intensity)?;
+            let direction = need("direction", l.direction)?;
+            let light = PointLight::spot(position, direction, intensity, l.cutoff.unwrap_or(20.0), l.beam);
+            lights.points.push(light.map_err(err)?);
+        }
+        LightKind::Distant => {
+            forbid(&[
+                ("position", l.position.is_some()),
+                ("intensity", l.intensity.is_some()),
+                ("cutoff", l.cutoff.is_some()),
+                ("beam", l.beam.is_some()),
+            ])?;
+            let (direction, irradiance) = (need("direction", l.direction)?, need("irradiance", l.irradiance)?);
+            check_strength(path, &format!("light {}: irradiance", k + 1), irradiance)?;
+            lights.distant.push(crate::light::DistantLight::new(direction, irradiance).map_err(err)?);
+        }
+    }
+    Ok(())
+}
+
 /// The point and spot lights and the environment of a scene file, and the files they read.
 fn lights_from(path: &Path, d: &SceneDescription) -> Result<(Lights, Vec<PathBuf>)> {
     let mut lights = Lights::default();
     let mut sources = Vec::new();
     for (k, l) in d.lights.iter().enumerate() {
-        let err = |e: Error| match e {
-            Error::InvalidOption(m) => invalid(path, format!("light {}: {m}", k + 1)),
-            other => other,
-        };
-        let need = |key: &str, v: Option<[f32; 3]>| {
-            v.map(vec3).ok_or_else(|| invalid(path, format!("light {}: a {:?} light needs `{key}`", k + 1, l.kind)))
-        };
-        let forbid = |keys: &[(&str, bool)]| match keys.iter().find(|(_, given)| *given) {
-            Some((key, _)) => Err(invalid(path, format!("light {}: `{key}` is not for {:?} lights", k + 1, l.kind))),
-            None => Ok(()),
-        };
-        match l.kind {
-            LightKind::Point => {
-                forbid(&[
-                    ("direction", l.direction.is_some()),
-                    ("cutoff", l.cutoff.is_some()),
-                    ("beam", l.beam.is_some()),
-                    ("irradiance", l.irradiance.is_some()),
-                ])?;
-                let intensity = need("intensity", l.intensity)?;
-                check_strength(path, &format!("light {}: intensity", k + 1), intensity)?;
-                let light = PointLight::point(need("position", l.position)?, intensity);
-                lights.points.push(light.map_err(err)?);
-            }
-            LightKind::Spot => {
-                forbid(&[("irradiance", l.irradiance.is_some())])?;
-                let (position, intensity) = (need("position", l.position)?, need("intensity", l.intensity)?);
-                check_strength(path, &format!("light {}: intensity", k + 1), intensity)?;
-                let direction = need("direction", l.direction)?;
-                let light = PointLight::spot(position, direction, intensity, l.cutoff.unwrap_or(20.0), l.beam);
-                lights.points.push(light.map_err(err)?);
-            }
-            LightKind::Distant => {
-                forbid(&[
-                    ("position", l.position.is_some()),
-                    ("intensity", l.intensity.is_some()),
-                    ("cutoff", l.cutoff.is_some()),
-                    ("beam", l.beam.is_some()),
-                ])?;
-                let (direction, irradiance) = (need("direction", l.direction)?, need("irradiance", l.irradiance)?);
-                check_strength(path, &format!("light {}: irradiance", k + 1), irradiance)?;
-                lights.distant.push(crate::light::DistantLight::new(direction, irradiance).map_err(err)?);
-            }
-        }
+        light_from(path, k, l, &mut lights).map_err(|e| at_origin(d, &format!("light {}", k + 1), e))?;
     }
     if let Some(e) = &d.environment {
         let scale = e.scale.unwrap_or(1.0);

@@ -2,8 +2,18 @@
 use super::*;
 
 impl Translator<'_, '_> {
-    /// An emitter outside a shape: a light or the environment.
+    /// An emitter outside a shape: a light or the environment; the lights it adds are located
+    /// at its element.
     pub(super) fn emitter(&mut self, e: &Obj) -> Result<()> {
+        let before = self.out.lights.len();
+        self.emitter_here(e)?;
+        for k in before..self.out.lights.len() {
+            self.out.origins.insert(format!("light {}", k + 1), (e.at.file.to_path_buf(), e.at.line));
+        }
+        Ok(())
+    }
+
+    fn emitter_here(&mut self, e: &Obj) -> Result<()> {
         let to_world = self.transform(e, "to_world")?;
         match e.plugin.as_str() {
             "point" => {

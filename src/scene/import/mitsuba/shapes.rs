@@ -194,6 +194,7 @@ impl Translator<'_, '_> {
                 return Ok(());
             }
         }
+        self.out.origins.insert(format!("material {name}"), (s.at.file.to_path_buf(), s.at.line));
         self.out.materials.insert(name, material);
         Ok(())
     }

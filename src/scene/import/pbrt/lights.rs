@@ -8,8 +8,17 @@ use crate::scene::import::{At, syntax, to_rows};
 use glam::{DMat4, DVec3, DVec4};
 
 impl Parser<'_> {
-    /// `AreaLightSource` and `LightSource`.
+    /// `AreaLightSource` and `LightSource`; the lights it adds are located at `at`.
     pub(super) fn light_directive(&mut self, d: &str, c: &mut Cursor, at: &At) -> Result<bool> {
+        let before = self.out.lights.len();
+        let known = self.light_directive_here(d, c, at)?;
+        for k in before..self.out.lights.len() {
+            self.out.origins.insert(format!("light {}", k + 1), (at.file.to_path_buf(), at.line));
+        }
+        Ok(known)
+    }
+
+    fn light_directive_here(&mut self, d: &str, c: &mut Cursor, at: &At) -> Result<bool> {
         match d {
             "AreaLightSource" => {
                 let kind = c.text(d)?;
@@ -24,7 +33,11 @@ impl Parser<'_> {
                 let scale = params.float("scale", 1.0, at)? as f32;
                 let two_sided = params.boolean("twosided", false, at)?;
                 self.check_unused("AreaLightSource", &params, at)?;
-                self.state.area_light = Some(AreaLight { radiance: radiance.map(|v| v * scale), two_sided });
+                self.state.area_light = Some(AreaLight {
+                    radiance: radiance.map(|v| v * scale),
+                    two_sided,
+                    origin: (at.file.to_path_buf(), at.line),
+                });
             }
             "LightSource" => {
                 let kind = c.text(d)?;

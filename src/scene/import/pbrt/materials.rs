@@ -19,6 +19,7 @@ impl Parser<'_> {
                 let m = self.material(&kind, &params, at)?;
                 let key = format!("named:{name}");
                 self.out.materials.insert(key.clone(), m);
+                self.out.origins.insert(format!("material {key}"), (at.file.to_path_buf(), at.line));
                 self.named_materials.insert(name, key);
             }
             "NamedMaterial" => {
@@ -34,6 +35,7 @@ impl Parser<'_> {
                 let m = self.material(&kind, &params, at)?;
                 let key = self.fresh("material");
                 self.out.materials.insert(key.clone(), m);
+                self.out.origins.insert(format!("material {key}"), (at.file.to_path_buf(), at.line));
                 self.state.material = key;
             }
             "Texture" => {

@@ -74,6 +74,9 @@ impl Parser<'_> {
         [m.interior_medium, m.exterior_medium] = key.1.clone();
         let name = self.fresh("bounding");
         self.out.materials.insert(name.clone(), m);
+        if let Some(o) = self.out.origins.get(&format!("material {}", key.0)).cloned() {
+            self.out.origins.insert(format!("material {name}"), o);
+        }
         self.bounding.insert(key, name.clone());
         Ok(name)
     }
@@ -98,6 +101,7 @@ impl Parser<'_> {
         m.two_sided_emission = light.two_sided;
         let name = self.fresh("emitter");
         self.out.materials.insert(name.clone(), m);
+        self.out.origins.insert(format!("material {name}"), light.origin.clone());
         self.emitting.insert(key, name.clone());
         Ok(name)
     }

@@ -15,6 +15,8 @@ pub(super) const MAX_ATTRIBUTE_DEPTH: usize = 4096;
 pub(super) struct AreaLight {
     pub(super) radiance: [f32; 3],
     pub(super) two_sided: bool,
+    /// Where it was declared (file, line).
+    pub(super) origin: (std::path::PathBuf, u32),
 }
 
 /// pbrt's graphics state.
