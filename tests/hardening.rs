@@ -577,8 +577,9 @@ fn includes_are_reported_where_the_scene_names_them() {
     assert!(!out.exists());
 }
 
-/// Under an address-space limit (`ulimit -v`) a render too large for it is refused with one
-/// line before allocating, instead of aborting ("memory allocation of … failed", exit 134).
+/// Under an address-space limit (`ulimit -v`) a render, or a scene's shapes, too large for it
+/// are refused with one line before allocating, instead of aborting ("memory allocation of …
+/// failed", exit 134).
 #[test]
 fn a_render_larger_than_the_memory_left_is_refused() {
     let d = scratch("memory");
@@ -591,6 +592,21 @@ fn a_render_larger_than_the_memory_left_is_refused() {
     );
     let o = Command::new("sh").arg("-c").arg(&command).env_remove("RUST_BACKTRACE").output().unwrap();
     fails_with(&o, "a 8000x8000 render needs about");
+    // And a scene whose shapes would not fit, before they are tessellated (101 spheres of
+    // 81,920 triangles: 3.9 GiB).
+    let spheres = "Shape \"sphere\" \"float radius\" 0.1\n".repeat(100);
+    let scene = format!(
+        "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\"\nWorldBegin\nAttributeBegin\nAreaLightSource \"diffuse\"\nShape \"sphere\"\nAttributeEnd\n{spheres}"
+    );
+    std::fs::write(d.join("many.pbrt"), scene).unwrap();
+    let command = format!(
+        "ulimit -v 600000 && exec '{}' render '{}' --spp 1 -q -o '{}'",
+        env!("CARGO_BIN_EXE_zvidpt"),
+        d.join("many.pbrt").display(),
+        out.display()
+    );
+    let o = Command::new("sh").arg("-c").arg(&command).env_remove("RUST_BACKTRACE").output().unwrap();
+    fails_with(&o, "many.pbrt: the scene's shapes make");
     assert!(!out.exists());
 }
 

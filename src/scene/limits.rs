@@ -10,6 +10,9 @@ pub const MAX_MESH_BYTES: u64 = 2 << 30;
 /// Most triangles a scene may hold: about 500 bytes each at the peak of loading and the BVH
 /// build (81,920 triangles took 41 MB), so 2^25 need about 17 GB of this machine's 24 GiB.
 pub const MAX_TRIANGLES: usize = 1 << 25;
+/// Bytes a triangle takes at the peak of loading and the BVH build (see [`MAX_TRIANGLES`]):
+/// shapes that would need more than the memory left are refused before they are tessellated.
+pub const BYTES_PER_TRIANGLE: u64 = 500;
 /// Largest emitted radiance per channel (the sun's is about 1.6e9 W/(m²·sr)).
 pub const MAX_EMISSION: f32 = 1e12;
 /// Most vertices of one polygon (ear clipping is quadratic in it).

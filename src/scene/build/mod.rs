@@ -463,6 +463,20 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
             format!("the scene's shapes and meshes make {planned} triangles, more than {MAX_TRIANGLES}"),
         ));
     }
+    // And against the memory left: an allocation that fails aborts the process.
+    let to_build = (planned - meshes.geometry.triangles.len()) as u64 * BYTES_PER_TRIANGLE;
+    if let Some(free) = crate::io::memory_available().filter(|&free| to_build > free) {
+        let gb = |b: u64| b as f64 / f64::from(1u32 << 30);
+        return Err(invalid(
+            path,
+            format!(
+                "the scene's shapes make {} triangles, about {:.1} GiB while loading, and {:.1} GiB of memory is available",
+                planned - meshes.geometry.triangles.len(),
+                gb(to_build),
+                gb(free)
+            ),
+        ));
+    }
     for (k, shape) in d.shapes.iter().enumerate() {
         add_shape(path, k, shape, &mut meshes)?;
     }
