@@ -56,6 +56,16 @@ pub fn read_text(path: &Path, limit: u64, what: &str) -> Result<String> {
     })
 }
 
+/// A size in bytes for a message: MiB below a GiB, else GiB with one decimal.
+#[must_use]
+pub fn human_bytes(bytes: u64) -> String {
+    if bytes < 1 << 30 {
+        format!("{} MiB", bytes.div_ceil(1 << 20))
+    } else {
+        format!("{:.1} GiB", bytes as f64 / f64::from(1u32 << 30))
+    }
+}
+
 /// Bytes this process may still allocate, where the system says: the smaller of the
 /// memory the kernel reports available (`MemAvailable`) and what is left of the address-space
 /// limit (`ulimit -v`) beyond the process's present size. `None` where neither is known.

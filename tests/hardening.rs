@@ -577,9 +577,9 @@ fn includes_are_reported_where_the_scene_names_them() {
     assert!(!out.exists());
 }
 
-/// Under an address-space limit (`ulimit -v`) a render, or a scene's shapes, too large for it
-/// are refused with one line before allocating, instead of aborting ("memory allocation of …
-/// failed", exit 134).
+/// Under an address-space limit (`ulimit -v`) a render, a scene's shapes or a mesh file too
+/// large for it are refused with one line before allocating, instead of aborting ("memory
+/// allocation of … failed", exit 134).
 #[test]
 fn a_render_larger_than_the_memory_left_is_refused() {
     let d = scratch("memory");
@@ -595,10 +595,10 @@ fn a_render_larger_than_the_memory_left_is_refused() {
     // And a scene whose shapes would not fit, before they are tessellated (101 spheres of
     // 81,920 triangles: 3.9 GiB).
     let spheres = "Shape \"sphere\" \"float radius\" 0.1\n".repeat(100);
-    let scene = format!(
+    let many = format!(
         "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\"\nWorldBegin\nAttributeBegin\nAreaLightSource \"diffuse\"\nShape \"sphere\"\nAttributeEnd\n{spheres}"
     );
-    std::fs::write(d.join("many.pbrt"), scene).unwrap();
+    std::fs::write(d.join("many.pbrt"), many).unwrap();
     let command = format!(
         "ulimit -v 600000 && exec '{}' render '{}' --spp 1 -q -o '{}'",
         env!("CARGO_BIN_EXE_zvidpt"),
@@ -607,6 +607,29 @@ fn a_render_larger_than_the_memory_left_is_refused() {
     );
     let o = Command::new("sh").arg("-c").arg(&command).env_remove("RUST_BACKTRACE").output().unwrap();
     fails_with(&o, "many.pbrt: the scene's shapes make");
+    // And a mesh file too large for it, from its size before it is parsed (a 1000×1000 grid:
+    // 74 MB of OBJ, about 590 MiB counted at 8 bytes per byte).
+    let mut obj = String::from("mtllib box.mtl\nusemtl white\n");
+    for i in 0..1000 {
+        for j in 0..1000 {
+            obj.push_str(&format!("v {:.6} {:.6} 0.000000\n", f64::from(i) * 1e-3, f64::from(j) * 1e-3));
+        }
+    }
+    for i in 0..999 {
+        for j in 0..999 {
+            let a = i * 1000 + j + 1;
+            obj.push_str(&format!("f {a} {} {}\nf {} {} {}\n", a + 1, a + 1000, a + 1, a + 1001, a + 1000));
+        }
+    }
+    let grid = scene("memory-mesh", &obj);
+    let command = format!(
+        "ulimit -v 600000 && exec '{}' render '{}' --spp 1 -q -o '{}'",
+        env!("CARGO_BIN_EXE_zvidpt"),
+        grid.display(),
+        out.display()
+    );
+    let o = Command::new("sh").arg("-c").arg(&command).env_remove("RUST_BACKTRACE").output().unwrap();
+    fails_with(&o, "box.obj: a mesh file of");
     assert!(!out.exists());
 }
 

@@ -235,14 +235,11 @@ impl<S: Send + Sync> Tile<S> {
 fn check_memory(width: u32, height: u32, per_pixel: u64, available: Option<u64>) -> Result<()> {
     let need = u64::from(width) * u64::from(height) * per_pixel;
     match available {
-        Some(free) if need > free => {
-            let gb = |b: u64| b as f64 / f64::from(1u32 << 30);
-            Err(Error::InvalidOption(format!(
-                "a {width}x{height} render needs about {:.1} GiB of memory and {:.1} GiB is available: render it smaller (--resolution)",
-                gb(need),
-                gb(free)
-            )))
-        }
+        Some(free) if need > free => Err(Error::InvalidOption(format!(
+            "a {width}x{height} render needs about {} of memory and {} is available: render it smaller (--resolution)",
+            crate::io::human_bytes(need),
+            crate::io::human_bytes(free)
+        ))),
         _ => Ok(()),
     }
 }

@@ -466,14 +466,13 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
     // And against the memory left: an allocation that fails aborts the process.
     let to_build = (planned - meshes.geometry.triangles.len()) as u64 * BYTES_PER_TRIANGLE;
     if let Some(free) = crate::io::memory_available().filter(|&free| to_build > free) {
-        let gb = |b: u64| b as f64 / f64::from(1u32 << 30);
         return Err(invalid(
             path,
             format!(
-                "the scene's shapes make {} triangles, about {:.1} GiB while loading, and {:.1} GiB of memory is available",
+                "the scene's shapes make {} triangles, about {} while loading, and {} of memory is available",
                 planned - meshes.geometry.triangles.len(),
-                gb(to_build),
-                gb(free)
+                crate::io::human_bytes(to_build),
+                crate::io::human_bytes(free)
             ),
         ));
     }

@@ -456,6 +456,26 @@ pub(super) struct ParsedObj {
     pub(crate) mtl_files: Vec<std::path::PathBuf>,
 }
 
+/// Refuses a mesh file of `bytes` bytes (decompressed) whose triangles would need more than
+/// the memory left: at [`BYTES_PER_TRIANGLE`] each, about `per_byte` times its size (a binary
+/// PLY holds a triangle in about 30 bytes, an OBJ in about 35 of text; counted low, so that
+/// only a file that cannot fit is refused).
+fn check_mesh_memory(mesh_path: &Path, bytes: usize, per_byte: u64) -> Result<()> {
+    let need = bytes as u64 * per_byte;
+    match crate::io::memory_available() {
+        Some(free) if need > free => Err(Error::Mesh {
+            path: mesh_path.to_path_buf(),
+            message: format!(
+                "a mesh file of {} needs about {} while loading, and {} of memory is available",
+                crate::io::human_bytes(bytes as u64),
+                crate::io::human_bytes(need),
+                crate::io::human_bytes(free)
+            ),
+        }),
+        _ => Ok(()),
+    }
+}
+
 /// Reads and parses the mesh file `mesh_path` (PLY when `is_ply`, else OBJ with its `mtllib`
 /// files beside it).
 pub(super) fn parse_mesh_file(mesh_path: &Path, is_ply: bool) -> Result<ParsedMesh> {
@@ -464,6 +484,7 @@ pub(super) fn parse_mesh_file(mesh_path: &Path, is_ply: bool) -> Result<ParsedMe
         if mesh_path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gz")) {
             bytes = gunzip(mesh_path, &bytes)?;
         }
+        check_mesh_memory(mesh_path, bytes.len(), 12)?;
         return parse_ply(mesh_path, &bytes).map(ParsedMesh::Ply);
     }
     if mesh_path.as_os_str().is_empty() || mesh_path.file_name().is_none() {
@@ -473,6 +494,7 @@ pub(super) fn parse_mesh_file(mesh_path: &Path, is_ply: bool) -> Result<ParsedMe
         });
     }
     let text = read_text(mesh_path, MAX_MESH_BYTES, "mesh (OBJ) file")?;
+    check_mesh_memory(mesh_path, text.len(), 8)?;
     let folder = mesh_path.parent().unwrap_or(Path::new("."));
     // tobj only learns that a library failed; why goes here.
     let mtl_note = RefCell::new(None);
