@@ -88,6 +88,13 @@ pub fn memory_available() -> Option<u64> {
     }
 }
 
+/// The memory left, where it is known and less than `need` bytes: a buffer of `need` bytes
+/// would not fit (an allocation that fails aborts the process, so callers refuse first).
+#[must_use]
+pub fn memory_short_of(need: u64) -> Option<u64> {
+    memory_available().filter(|&free| need > free)
+}
+
 /// The process's peak resident memory (Linux's `VmHWM`), where the system reports it.
 #[must_use]
 pub fn peak_memory_bytes() -> Option<u64> {

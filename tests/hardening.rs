@@ -577,6 +577,17 @@ fn includes_are_reported_where_the_scene_names_them() {
     assert!(!out.exists());
 }
 
+/// `zvidpt render ARGS --spp 1 -q` under an address-space limit of 600,000 KiB (`ulimit -v`;
+/// the arguments reach it as the shell's positional parameters, unquoted by nothing).
+fn render_within_600_mb(args: &[&str]) -> Output {
+    Command::new("sh")
+        .args(["-c", "ulimit -v 600000 && exec \"$0\" render \"$@\" --spp 1 -q", env!("CARGO_BIN_EXE_zvidpt")])
+        .args(args)
+        .env_remove("RUST_BACKTRACE")
+        .output()
+        .unwrap()
+}
+
 /// Under an address-space limit (`ulimit -v`) a render, a scene's shapes or a mesh file too
 /// large for it are refused with one line before allocating, instead of aborting ("memory
 /// allocation of … failed", exit 134).
@@ -584,14 +595,11 @@ fn includes_are_reported_where_the_scene_names_them() {
 fn a_render_larger_than_the_memory_left_is_refused() {
     let d = scratch("memory");
     let out = d.join("o.exr");
-    let command = format!(
-        "ulimit -v 600000 && exec '{}' render '{}/scenes/cornell-paper' --resolution 8000x8000 --spp 1 -q -o '{}'",
-        env!("CARGO_BIN_EXE_zvidpt"),
-        env!("CARGO_MANIFEST_DIR"),
-        out.display()
+    let paper = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell-paper");
+    fails_with(
+        &render_within_600_mb(&[paper, "--resolution", "8000x8000", "-o", s(&out)]),
+        "a 8000x8000 render needs about",
     );
-    let o = Command::new("sh").arg("-c").arg(&command).env_remove("RUST_BACKTRACE").output().unwrap();
-    fails_with(&o, "a 8000x8000 render needs about");
     // And a scene whose shapes would not fit, before they are tessellated (101 spheres of
     // 81,920 triangles: 3.9 GiB).
     let spheres = "Shape \"sphere\" \"float radius\" 0.1\n".repeat(100);
@@ -599,14 +607,7 @@ fn a_render_larger_than_the_memory_left_is_refused() {
         "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\"\nWorldBegin\nAttributeBegin\nAreaLightSource \"diffuse\"\nShape \"sphere\"\nAttributeEnd\n{spheres}"
     );
     std::fs::write(d.join("many.pbrt"), many).unwrap();
-    let command = format!(
-        "ulimit -v 600000 && exec '{}' render '{}' --spp 1 -q -o '{}'",
-        env!("CARGO_BIN_EXE_zvidpt"),
-        d.join("many.pbrt").display(),
-        out.display()
-    );
-    let o = Command::new("sh").arg("-c").arg(&command).env_remove("RUST_BACKTRACE").output().unwrap();
-    fails_with(&o, "many.pbrt: the scene's shapes make");
+    fails_with(&render_within_600_mb(&[s(&d.join("many.pbrt")), "-o", s(&out)]), "many.pbrt: the scene's shapes make");
     // And a mesh file too large for it, from its size before it is parsed (a 1000×1000 grid:
     // 74 MB of OBJ, about 590 MiB counted at 8 bytes per byte).
     let mut obj = String::from("mtllib box.mtl\nusemtl white\n");
@@ -622,14 +623,7 @@ fn a_render_larger_than_the_memory_left_is_refused() {
         }
     }
     let grid = scene("memory-mesh", &obj);
-    let command = format!(
-        "ulimit -v 600000 && exec '{}' render '{}' --spp 1 -q -o '{}'",
-        env!("CARGO_BIN_EXE_zvidpt"),
-        grid.display(),
-        out.display()
-    );
-    let o = Command::new("sh").arg("-c").arg(&command).env_remove("RUST_BACKTRACE").output().unwrap();
-    fails_with(&o, "box.obj: a mesh file of");
+    fails_with(&render_within_600_mb(&[s(&grid), "-o", s(&out)]), "box.obj: a mesh file of");
     assert!(!out.exists());
 }
 

@@ -1038,7 +1038,8 @@ impl Integrator for LearnedZvidpt {
         Some(self.iterations.len() as u32)
     }
 
-    /// With the training passes' sums and their combination: 256 measured as `path`'s 114.
+    /// With the training passes' sums and their combination: 256 measured where `path`
+    /// measured 114 ([`Integrator::bytes_per_pixel`]), counted with the same margin.
     fn bytes_per_pixel(&self) -> u64 {
         272
     }

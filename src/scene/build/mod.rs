@@ -117,10 +117,7 @@ fn located(path: &Path, d: &SceneDescription, key: &str, what: &str, e: Error) -
         return e;
     }
     let what = if what.is_empty() { String::new() } else { format!("{what}: ") };
-    match d.origins.get(key) {
-        Some((file, line)) => Error::InvalidScene { path: file.clone(), message: format!("line {line}: {what}{e}") },
-        None => invalid(path, format!("{what}{e}")),
-    }
+    at_origin(d, key, invalid(path, format!("{what}{e}")))
 }
 
 /// An error in the material or light `key` names in the description's origins (`material
@@ -465,7 +462,7 @@ fn build(path: &Path, d: SceneDescription) -> Result<Scene> {
     }
     // And against the memory left: an allocation that fails aborts the process.
     let to_build = (planned - meshes.geometry.triangles.len()) as u64 * BYTES_PER_TRIANGLE;
-    if let Some(free) = crate::io::memory_available().filter(|&free| to_build > free) {
+    if let Some(free) = crate::io::memory_short_of(to_build) {
         return Err(invalid(
             path,
             format!(

@@ -462,8 +462,8 @@ pub(super) struct ParsedObj {
 /// only a file that cannot fit is refused).
 fn check_mesh_memory(mesh_path: &Path, bytes: usize, per_byte: u64) -> Result<()> {
     let need = bytes as u64 * per_byte;
-    match crate::io::memory_available() {
-        Some(free) if need > free => Err(Error::Mesh {
+    match crate::io::memory_short_of(need) {
+        Some(free) => Err(Error::Mesh {
             path: mesh_path.to_path_buf(),
             message: format!(
                 "a mesh file of {} needs about {} while loading, and {} of memory is available",
