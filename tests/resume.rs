@@ -245,9 +245,22 @@ fn an_interrupted_batch_continues_when_run_again() {
 /// run straight through: the same bits (the target's rule reads the restored sums).
 #[test]
 fn a_render_to_a_noise_target_resumes_to_the_same_stop() {
-    let dir = scratch("resume", "noise-target");
+    resumed_to_the_same_stop("noise-target", &["--noise-target", "0.1"]);
+}
+
+/// The same with adaptive sampling: the checkpoint (taken after two passes, when pixels
+/// judged from 4 samples on already hold different counts) keeps each pixel's sample count,
+/// and the resumed render stops every pixel where the uninterrupted one did (the same bits,
+/// the per-pixel counts in the `spp` layer included).
+#[test]
+fn an_adaptive_render_resumes_to_the_same_stop() {
+    resumed_to_the_same_stop("adaptive", &["--noise-target", "0.1", "--adaptive", "--min-spp", "4"]);
+}
+
+fn resumed_to_the_same_stop(name: &str, flags: &[&str]) {
+    let dir = scratch("resume", name);
     let scene = scene();
-    let target = ["--noise-target", "0.1", "--progress-json"];
+    let target = [flags, &["--progress-json"][..]].concat();
     let whole = dir.join("whole.exr");
     let o =
         zvidpt(&[&render_args(&scene, "path", "1000000", &whole)[..], &target[..], &["--no-checkpoint"][..]].concat());
@@ -259,5 +272,13 @@ fn a_render_to_a_noise_target_resumes_to_the_same_stop() {
     assert!(!out.exists());
     let o = zvidpt(&[&render_args(&scene, "path", "1000000", &out)[..], &target[..], &["--resume"][..]].concat());
     assert!(o.status.success(), "{}", text(&o));
-    assert_same_bits(&out, &whole, "noise target");
+    assert_same_bits(&out, &whole, name);
+    if flags.contains(&"--adaptive") {
+        let layer = |p: &std::path::Path| {
+            zvidpt::film::read_exr_with(p, &["spp"]).unwrap().2.into_iter().next().flatten().expect("an spp layer")
+        };
+        let (a, b) = (layer(&out), layer(&whole));
+        assert_eq!(a, b);
+        assert!(a.iter().any(|&n| n != a[0]), "every pixel took the same samples");
+    }
 }

@@ -38,6 +38,12 @@ pub struct RenderArgs {
     /// Samples per pixel before the noise target is first judged.
     #[arg(long, default_value_t = 16, requires = "noise_target")]
     pub min_spp: u32,
+    /// Adaptive sampling: with --noise-target, each pixel stops taking samples once the
+    /// relative error estimated for it from its eight neighbours (never from its own samples,
+    /// which would bias it) is at most E; the render ends when every pixel has stopped (or at
+    /// --spp / --time). Writes each pixel's sample count as the layer `spp`.
+    #[arg(long, requires = "noise_target")]
+    pub adaptive: bool,
     /// Light-transport algorithm (`zvidpt` by default: far ahead of the path tracer on
     /// indirectly lit scenes, and it falls back to path tracing where its probe finds it
     /// losing; docs/results.md).
@@ -267,7 +273,11 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
         samples: args.samples,
         progress_json: args.progress_json,
         checkpoint,
-        noise_target: args.noise_target.map(|error| crate::render::NoiseTarget { error, min_spp: args.min_spp }),
+        noise_target: args.noise_target.map(|error| crate::render::NoiseTarget {
+            error,
+            min_spp: args.min_spp,
+            per_pixel: args.adaptive,
+        }),
     };
     // The denoiser is found before the render, not after it.
     let denoiser = if args.denoise { Some(crate::denoise::Denoiser::load(args.machine.threads)?) } else { None };
@@ -297,7 +307,9 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
             layers.push(("Z".into(), a.depth.clone()));
         }
     }
-    if want(Aov::Spp) {
+    if let Some(counts) = &stats.pixel_counts {
+        layers.push(("spp".into(), counts.iter().map(|&n| (n + stats.prior_spp) as f32).collect()));
+    } else if want(Aov::Spp) {
         layers.push(("spp".into(), vec![image.spp as f32; image.pixels.len()]));
     }
     let denoised = match (&denoiser, &aovs) {
@@ -421,6 +433,9 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
                 if met { "meets" } else { "short of" }
             );
         }
+        if let Some((lo, mean, hi)) = stats.pixel_spp {
+            out!("adaptive sampling: {mean:.1} samples per pixel on average (fewest {lo}, most {hi}; layer spp)");
+        }
         if let Some(d) = &denoised {
             out!(
                 "denoised in {:.2} s (Open Image Denoise, guided by {}; {}) -> layers denoised.R/G/B{}",
@@ -467,6 +482,9 @@ pub(super) fn render_identity(args: &RenderArgs, scene: &Scene) -> Metadata {
     if let Some(e) = args.noise_target {
         meta.push("noise_target", e);
         meta.push("min_spp", args.min_spp);
+        if args.adaptive {
+            meta.push("adaptive", 1);
+        }
     }
     meta.push("samples", args.samples.map_or("-".into(), |(a, b)| format!("{a}..{b}")));
     args.photon.describe(args.integrator, &mut meta);

@@ -70,6 +70,8 @@ fn get_varint(b: &mut &[u8]) -> Option<i128> {
         shift += 7;
     }
 }
+/// Marks the per-pixel sample counts at the end of a partial render.
+const COUNTS_TAG: u8 = 0xC0;
 /// Largest metadata block read.
 const MAX_META_BYTES: usize = 1 << 20;
 
@@ -81,18 +83,21 @@ fn bad(path: &Path, what: &str) -> Error {
 pub fn stage_partial(path: &Path, part: &Partial, meta: &Metadata) -> Result<super::Staged> {
     let s = &part.sums;
     let header = [s.width, s.height, part.first, s.spp, part.total_spp];
-    stage_sums(path, meta, header, |j| (s.sum[j], s.sum_sq[j]), part.prior.as_ref())
+    let counts = (!s.counts.is_empty()).then_some(s.counts.as_slice());
+    stage_sums(path, meta, header, |j| (s.sum[j], s.sum_sq[j]), part.prior.as_ref(), counts)
 }
 
 /// Stages a partial render whose pixel `j` (row-major) has the sums `pixel(j)`, without a
 /// copy of the image's sums (a checkpoint taken mid-render). `header` is `[width, height,
-/// first, spp, total_spp]`.
+/// first, spp, total_spp]`; `counts`, each pixel's own sample count where they differ
+/// (adaptive sampling).
 pub fn stage_sums(
     path: &Path,
     meta: &Metadata,
     header: [u32; 5],
     pixel: impl Fn(usize) -> ([i128; 3], [i128; 3]),
     prior: Option<&PriorSamples>,
+    counts: Option<&[u32]>,
 ) -> Result<super::Staged> {
     let mut text = String::new();
     for (k, v) in &meta.entries {
@@ -125,6 +130,14 @@ pub fn stage_sums(
                 p.encode(&mut tail);
             }
             None => tail.push(0),
+        }
+        // Per-pixel counts, if any, follow (files without them end here), under a tag that no
+        // section of the pre-pass samples starts with.
+        if let Some(counts) = counts {
+            tail.push(COUNTS_TAG);
+            for &c in counts {
+                tail.extend_from_slice(&c.to_le_bytes());
+            }
         }
         w.write_all(&tail).map_err(io)?;
         let crc = w.crc.finalize();
@@ -241,10 +254,21 @@ pub fn parse_partial(bytes: &[u8], path: &Path) -> Result<(Partial, Metadata)> {
     if prior.is_none() {
         b = &b[1..];
     }
+    let mut counts = Vec::new();
+    if let Some((&COUNTS_TAG, rest)) = b.split_first() {
+        if rest.len() != pixels * 4 {
+            return Err(bad(path, "per-pixel counts"));
+        }
+        counts = rest.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+        if counts.iter().any(|&c| c > spp) {
+            return Err(bad(path, "per-pixel counts"));
+        }
+        b = &[];
+    }
     if !b.is_empty() {
         return Err(bad(path, "trailing bytes"));
     }
-    let sums = PixelSums { width, height, spp, sum, sum_sq };
+    let sums = PixelSums { width, height, spp, sum, sum_sq, counts };
     Ok((Partial { first, total_spp, sums, prior }, meta))
 }
 
@@ -259,6 +283,7 @@ mod tests {
             spp,
             sum: (0..6).map(|i| [i, -i, i128::MAX / 3]).collect(),
             sum_sq: (0..6).map(|i| [i * i, 7, 1 << 100]).collect(),
+            counts: Vec::new(),
         };
         Partial { first, total_spp: 10, sums, prior: None }
     }

@@ -80,16 +80,19 @@ fn parity(index: usize, width: u32) -> usize {
     (x + y) & 1
 }
 
-/// Mean per-sample variance of each parity's pixels (over channels), from `spp ≥ 2` samples'
-/// sums. A parity without pixels (a one-pixel image) reports 1 for both, i.e. weights by
-/// sample count alone.
-fn parity_variance(width: u32, spp: u32, sum: &[[f64; 3]], sum_sq: &[[f64; 3]]) -> [f64; 2] {
-    let n = f64::from(spp);
+/// Mean per-sample variance of each parity's pixels (over channels), from the sums of pixel
+/// `i`'s `spp(i)` samples (pixels of fewer than 2 left out). A parity without pixels (a
+/// one-pixel image) reports 1 for both, i.e. weights by sample count alone.
+fn parity_variance(width: u32, spp: impl Fn(usize) -> u32, sum: &[[f64; 3]], sum_sq: &[[f64; 3]]) -> [f64; 2] {
     let (mut total, mut count) = ([0.0f64; 2], [0u64; 2]);
     for (i, (s, q)) in sum.iter().zip(sum_sq).enumerate() {
+        let n = spp(i);
+        if n < 2 {
+            continue;
+        }
         let p = parity(i, width);
         for c in 0..3 {
-            total[p] += mean_and_variance(s[c], q[c], n).1;
+            total[p] += mean_and_variance(s[c], q[c], f64::from(n)).1;
         }
         count[p] += 3;
     }
@@ -211,7 +214,7 @@ impl PriorSamples {
         if spp < 2 || sum.len() != self.weighted.len() || sum_sq.len() != sum.len() {
             return false;
         }
-        let v = parity_variance(self.width, spp, sum, sum_sq);
+        let v = parity_variance(self.width, |_| spp, sum, sum_sq);
         if let Some(p) = self.pending.take() {
             let floor = [p.variance[0].max(v[0]), p.variance[1].max(v[1])];
             self.weigh(p.spp, &p.sum, &p.sum_sq, floor);
@@ -250,29 +253,41 @@ impl PriorSamples {
         self.weight[1] += w[1];
     }
 
-    /// The image: these passes combined with the final passes (`spp` samples per pixel given
-    /// by their sums). Returns per-pixel means and, per pixel, the combination's variance
-    /// times the total sample count (a per-sample variance, as an unweighted image reports).
-    /// A pass not yet weighed is weighed first, as [`Self::finish`] would.
+    /// The image: these passes combined with the final passes (`spp` samples per pixel, or
+    /// pixel `i`'s `counts[i]` where pixels took different counts, given by their sums).
+    /// Returns per-pixel means and, per pixel, the combination's variance times the total
+    /// sample count (a per-sample variance, as an unweighted image reports). A pass not yet
+    /// weighed is weighed first, as [`Self::finish`] would.
     #[must_use]
-    pub fn combine(&self, spp: u32, sum: &[[f64; 3]], sum_sq: &[[f64; 3]]) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+    pub fn combine(
+        &self,
+        spp: u32,
+        counts: Option<&[u32]>,
+        sum: &[[f64; 3]],
+        sum_sq: &[[f64; 3]],
+    ) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+        let count = |i: usize| counts.and_then(|c| c.get(i).copied()).unwrap_or(spp);
         if let Some(p) = &self.pending {
             // The last training pass is weighed by the larger of its variance and the final
             // passes' (per parity, so a pixel's weights still come from the other parity).
-            let v = if spp >= 2 { parity_variance(self.width, spp, sum, sum_sq) } else { p.variance };
+            let v = if spp >= 2 { parity_variance(self.width, count, sum, sum_sq) } else { p.variance };
             let floor = [p.variance[0].max(v[0]), p.variance[1].max(v[1])];
             let mut done = Self { pending: None, ..self.clone() };
             done.weigh(p.spp, &p.sum, &p.sum_sq, floor);
-            return done.combine(spp, sum, sum_sq);
+            return done.combine(spp, counts, sum, sum_sq);
         }
-        let n = f64::from(spp);
-        let v = if spp >= 2 { parity_variance(self.width, spp, sum, sum_sq) } else { self.last.unwrap_or([1.0; 2]) };
-        let w = if spp == 0 { [0.0; 2] } else { [n / v[1], n / v[0]] };
-        let total_spp = f64::from(self.spp) + n;
+        let v = if spp >= 2 { parity_variance(self.width, count, sum, sum_sq) } else { self.last.unwrap_or([1.0; 2]) };
+        // The image's count (the most samples any pixel took): a pixel's variance of the mean
+        // times it is what the image reports.
+        let total_spp = f64::from(self.spp) + f64::from(spp);
         let mut pixels = vec![[0.0f32; 3]; sum.len()];
         let mut variance = vec![[0.0f32; 3]; sum.len()];
         for (i, (s, q)) in sum.iter().zip(sum_sq).enumerate() {
             let p = parity(i, self.width);
+            let spp = count(i);
+            let n = f64::from(spp);
+            // A pixel of parity p is weighted by the other parity's variance.
+            let w = [n / v[1], n / v[0]];
             let total = self.weight[p] + w[p];
             if total <= 0.0 {
                 continue;
@@ -315,7 +330,7 @@ mod tests {
         let (s, q) = pass(&a, 4, 2.0);
         assert!(prior.add_pass(4, &s, &q));
         let (s, q) = pass(&b, 4, 1.0);
-        let (pixels, variance) = prior.combine(4, &s, &q);
+        let (pixels, variance) = prior.combine(4, None, &s, &q);
         // Weights 1/4 : 1 → (1·0.25 + 2·1)/1.25 = 1.8.
         for p in &pixels {
             assert!((p[0] - 1.8).abs() < 1e-5, "{p:?}");
@@ -350,7 +365,7 @@ mod tests {
             if bump && final_pass {
                 q[6] = q[6].map(|x| x * 50.0);
             }
-            prior.combine(8, &s, &q).0
+            prior.combine(8, None, &s, &q).0
         };
         for final_pass in [false, true] {
             let (plain, bumped) = (render(false, final_pass), render(true, final_pass));
@@ -377,7 +392,7 @@ mod tests {
         // Per-sample variances 2 and 80/7: weights 2·7/80 and 8·7/80 → (1·2 + 3·8)/10 = 2.6;
         // with the first pass's own variance it would be (1·1 + 3·0.7)/1.7 = 1.82.
         let (s, q) = pass(&[[3.0; 3]; 8], 0, 0.0);
-        let (pixels, _) = prior.combine(0, &s, &q);
+        let (pixels, _) = prior.combine(0, None, &s, &q);
         for p in &pixels {
             assert!((p[0] - 2.6).abs() < 1e-5, "{p:?}");
         }
@@ -396,7 +411,7 @@ mod tests {
         assert!(prior.add_pass(2, &s, &q));
         let (s, q) = pass(&[[3.0; 3]; 8], 8, 10f64.sqrt());
         // As above: 2.6, where the pass's own variance would give 1.82.
-        let (pixels, _) = prior.combine(8, &s, &q);
+        let (pixels, _) = prior.combine(8, None, &s, &q);
         for p in &pixels {
             assert!((p[0] - 2.6).abs() < 1e-5, "{p:?}");
         }
@@ -405,7 +420,7 @@ mod tests {
         let mut rest = bytes.as_slice();
         let back = PriorSamples::decode(&mut rest, 8).unwrap();
         assert!(rest.is_empty() && back == prior);
-        assert_eq!(back.combine(8, &s, &q), prior.combine(8, &s, &q));
+        assert_eq!(back.combine(8, None, &s, &q), prior.combine(8, None, &s, &q));
         // Cut anywhere, the encoding is refused, never misread.
         for cut in [bytes.len() - 1, bytes.len() - 100, 100] {
             assert!(PriorSamples::decode(&mut &bytes[..cut], 8).is_none(), "cut at {cut}");
@@ -418,7 +433,7 @@ mod tests {
         let (s, q) = pass(&[[1.0; 3]], 2, 1.0);
         prior.add_pass(2, &s, &q);
         let (s, q) = pass(&[[4.0; 3]], 6, 3.0);
-        let (pixels, _) = prior.combine(6, &s, &q);
+        let (pixels, _) = prior.combine(6, None, &s, &q);
         assert!((pixels[0][0] - 3.25).abs() < 1e-6, "{pixels:?}");
     }
 }

@@ -34,13 +34,23 @@ fn from_fixed(v: i128) -> f64 {
 pub struct PixelSums {
     pub width: u32,
     pub height: u32,
-    /// Samples per pixel summed.
+    /// Samples per pixel summed (with `counts`, the most any pixel took).
     pub spp: u32,
     pub sum: Vec<[i128; 3]>,
     pub sum_sq: Vec<[i128; 3]>,
+    /// Each pixel's own sample count where pixels took different counts (adaptive sampling);
+    /// empty when every pixel took `spp`.
+    pub counts: Vec<u32>,
 }
 
 impl PixelSums {
+    /// Samples summed in pixel `j` (row-major).
+    #[inline]
+    #[must_use]
+    pub fn count(&self, j: usize) -> u32 {
+        self.counts.get(j).copied().unwrap_or(self.spp)
+    }
+
     /// The image's pixels and per-sample variances: the means, or with a learning integrator's
     /// earlier passes, their combination with these sums.
     #[must_use]
@@ -48,10 +58,25 @@ impl PixelSums {
         let to_f64 = |v: &[[i128; 3]]| -> Vec<[f64; 3]> { v.iter().map(|p| p.map(from_fixed)).collect() };
         if let Some(prior) = prior {
             // Samples from before the passes (training) come in by inverse-variance weights.
-            return prior.combine(self.spp, &to_f64(&self.sum), &to_f64(&self.sum_sq));
+            let counts = (!self.counts.is_empty()).then_some(self.counts.as_slice());
+            return prior.combine(self.spp, counts, &to_f64(&self.sum), &to_f64(&self.sum_sq));
         }
-        self.sum.iter().zip(&self.sum_sq).map(|(s, q)| finish_pixel(s, q, self.spp)).unzip()
+        (0..self.sum.len()).map(|j| finish_counted(&self.sum[j], &self.sum_sq[j], self.count(j), self.spp)).unzip()
     }
+}
+
+/// A pixel's mean and variance from its exact sums of `n` samples, in an image of `spp`
+/// samples per pixel: the variance is scaled by `spp / n`, so that divided by the image's
+/// `spp`, as every reader of an [`Image`] divides it, it gives this pixel's variance of the
+/// mean (adaptive sampling leaves pixels with fewer samples than the image's count).
+#[inline]
+pub(crate) fn finish_counted(s: &[i128; 3], q: &[i128; 3], n: u32, spp: u32) -> ([f32; 3], [f32; 3]) {
+    let (mean, var) = finish_pixel(s, q, n);
+    if n == spp || n == 0 {
+        return (mean, var);
+    }
+    let scale = (f64::from(spp) / f64::from(n)) as f32;
+    (mean, var.map(|v| v * scale))
 }
 
 /// A pixel's mean and per-sample variance from its exact sums of `spp` samples.
@@ -89,6 +114,11 @@ impl Partial {
         let Some(head) = parts.first() else {
             return Err(Error::InvalidOption("no parts to merge".into()));
         };
+        if parts.iter().any(|p| !p.sums.counts.is_empty()) {
+            return Err(Error::InvalidOption(
+                "a part with per-pixel sample counts (adaptive sampling) cannot be merged".into(),
+            ));
+        }
         let (width, height, total) = (head.sums.width, head.sums.height, head.total_spp);
         let mut next = 0u32;
         for p in &parts {

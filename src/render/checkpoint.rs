@@ -113,6 +113,7 @@ pub(super) fn write(
     progress: &Progress,
     sums: impl Fn(usize) -> ([i128; 3], [i128; 3]),
     prior: Option<&PriorSamples>,
+    counts: Option<&[u32]>,
 ) -> Result<()> {
     let mut meta = settings.meta.clone();
     meta.push(MARK, 1);
@@ -121,7 +122,7 @@ pub(super) fn write(
         meta.push(TRAINING, t);
     }
     let header = [size.0, size.1, progress.first, progress.done - progress.first, progress.total_spp];
-    film::commit(vec![film::stage_sums(&settings.path, &meta, header, sums, prior)?])
+    film::commit(vec![film::stage_sums(&settings.path, &meta, header, sums, prior, counts)?])
 }
 
 /// Checks that a checkpoint fits this render (size, sample range, training samples).

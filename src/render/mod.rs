@@ -9,7 +9,7 @@ pub mod interrupt;
 mod scene;
 
 use crate::accel::Accel;
-use crate::film::{Image, Partial, PixelSums, finish_pixel, to_fixed};
+use crate::film::{Image, Partial, PixelSums, finish_counted, finish_pixel, to_fixed};
 use crate::geometry::{UVec2, Vec3A};
 use crate::integrator::{Integrator, RenderContext, Scratch};
 use crate::light::LightSampling;
@@ -55,13 +55,17 @@ pub struct RenderSettings {
 }
 
 /// Rendering to a noise target: after every pass (once `min_spp` samples per pixel are in),
-/// the render stops when [`relative_error`] of the image is at most `error`.
+/// the render stops when [`relative_error`] of the image is at most `error`; or, `per_pixel`,
+/// each pixel stops taking samples once the error its neighbourhood estimates for it is at
+/// most `error` ([`local_errors`]), and the render when every pixel has stopped.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NoiseTarget {
     /// The relative error to reach (0.05: 5%).
     pub error: f64,
     /// Samples per pixel before the error is first judged.
     pub min_spp: u32,
+    /// Converged pixels stop receiving samples (adaptive sampling).
+    pub per_pixel: bool,
 }
 
 /// Fixed-point scale of each pixel's share of the image error (see [`relative_error`]).
@@ -70,25 +74,80 @@ const ERROR_SCALE: f64 = (1u64 << 40) as f64;
 /// The image's estimated relative error after `spp` samples per pixel: the root of the mean
 /// over pixels and channels of `σ²/(n·(μ² + 0.01))` (σ² the pixel's per-sample variance, μ its
 /// mean, n its samples): the relMSE `zvidpt diff` measures against a reference, predicted
-/// from the samples themselves. `sums` yields each pixel's exact sums. Summed in fixed point,
-/// so the value is the same bits whatever order the pixels come in.
-pub fn relative_error<'a>(sums: impl Iterator<Item = (&'a [i128; 3], &'a [i128; 3])>, spp: u32) -> f64 {
+/// from the samples themselves. `sums` yields each pixel's exact sums and sample count.
+/// Summed in fixed point, so the value is the same bits whatever order the pixels come in.
+pub fn relative_error<'a>(sums: impl Iterator<Item = (&'a [i128; 3], &'a [i128; 3], u32)>) -> f64 {
     let (mut total, mut count) = (0u128, 0u64);
-    for (s, q) in sums {
-        let (mean, var) = finish_pixel(s, q, spp);
-        for c in 0..3 {
-            let (m, v) = (f64::from(mean[c]), f64::from(var[c]));
-            let share = v / (f64::from(spp.max(1)) * (m * m + 0.01));
-            // Non-finite or absurd shares count as the largest representable.
-            total = total.saturating_add(if share.is_finite() {
-                (share.min(1e12) * ERROR_SCALE) as u128
-            } else {
-                u128::MAX >> 8
-            });
-        }
+    for (s, q, spp) in sums {
+        total = total.saturating_add(error_share(s, q, spp));
         count += 3;
     }
     ((total as f64 / ERROR_SCALE) / count.max(1) as f64).sqrt()
+}
+
+/// A pixel's share of the squared relative error, summed over its channels, in fixed point
+/// ([`relative_error`]).
+fn error_share(s: &[i128; 3], q: &[i128; 3], spp: u32) -> u128 {
+    let (mean, var) = finish_pixel(s, q, spp);
+    let mut total = 0u128;
+    for c in 0..3 {
+        let (m, v) = (f64::from(mean[c]), f64::from(var[c]));
+        let share = v / (f64::from(spp.max(1)) * (m * m + 0.01));
+        // Non-finite or absurd shares count as the largest representable.
+        total = total.saturating_add(if share.is_finite() {
+            (share.min(1e12) * ERROR_SCALE) as u128
+        } else {
+            u128::MAX >> 8
+        });
+    }
+    total
+}
+
+/// A pixel's relative per-sample variance, summed over its channels, in fixed point:
+/// `Σ σ²/(μ² + 0.01)` (its [`error_share`] times its samples).
+fn relative_variance(s: &[i128; 3], q: &[i128; 3], spp: u32) -> u128 {
+    let (mean, var) = finish_pixel(s, q, spp);
+    let mut total = 0u128;
+    for c in 0..3 {
+        let (m, v) = (f64::from(mean[c]), f64::from(var[c]));
+        let r = v / (m * m + 0.01);
+        total = total.saturating_add(if r.is_finite() { (r.min(1e12) * ERROR_SCALE) as u128 } else { u128::MAX >> 8 });
+    }
+    total
+}
+
+/// Each pixel's estimated relative error for adaptive sampling: the relative per-sample
+/// variance of its 3 × 3 neighbourhood *other than itself* (`relative`, row-major, from
+/// [`relative_variance`]), averaged, over the pixel's own sample count (`counts`). A pixel's
+/// own samples never decide when it stops, so stopping does not favour the pixels whose
+/// samples happened to agree (a pixel that has not yet met a rare bright path would look
+/// converged to itself): its stopping time is independent of its own samples given its
+/// neighbours', which keeps its mean unbiased. (The bias left, through the neighbours'
+/// counts, which their own neighbourhoods, this pixel included, decide, is measured in
+/// `tests/adaptive.rs`.) Its own count is what makes the estimate fall as it takes samples,
+/// so a pixel never waits on neighbours that have stopped.
+#[must_use]
+pub fn local_errors(relative: &[u128], counts: &[u32], width: u32, height: u32) -> Vec<f64> {
+    let (w, h) = (width as i64, height as i64);
+    (0..h)
+        .into_par_iter()
+        .flat_map_iter(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            let (mut total, mut count) = (0u128, 0u64);
+            for dy in -1..=1i64 {
+                for dx in -1..=1i64 {
+                    let (nx, ny) = (x + dx, y + dy);
+                    if (dx, dy) == (0, 0) || nx < 0 || ny < 0 || nx >= w || ny >= h {
+                        continue;
+                    }
+                    total = total.saturating_add(relative[(ny * w + nx) as usize]);
+                    count += 3;
+                }
+            }
+            let n = f64::from(counts[(y * w + x) as usize].max(1));
+            if count == 0 { f64::INFINITY } else { ((total as f64 / ERROR_SCALE) / (count as f64 * n)).sqrt() }
+        })
+        .collect()
 }
 
 impl Default for RenderSettings {
@@ -147,6 +206,11 @@ pub struct RenderStats {
     /// With a noise target: the image's estimated relative error when the render stopped
     /// ([`relative_error`], final samples only), and whether that met the target.
     pub noise: Option<(f64, bool)>,
+    /// With adaptive sampling: the fewest, mean and most final samples a pixel took.
+    pub pixel_spp: Option<(u32, f64, u32)>,
+    /// With adaptive sampling: each pixel's final samples (row-major; `prior_spp` more are in
+    /// the image).
+    pub pixel_counts: Option<Vec<u32>>,
 }
 
 impl RenderStats {
@@ -174,6 +238,10 @@ struct Tile<S> {
     size: UVec2,
     sum: Vec<[i128; 3]>,
     sum_sq: Vec<[i128; 3]>,
+    /// Samples each pixel has taken (from the render's first sample).
+    count: Vec<u32>,
+    /// Whether each pixel takes samples in the next pass (adaptive sampling stops some).
+    active: Vec<bool>,
     state: Vec<S>,
     scratch: Scratch,
 }
@@ -199,10 +267,16 @@ impl<S: Send + Sync> Tile<S> {
         for y in 0..self.size.y {
             for x in 0..self.size.x {
                 let i = (y * self.size.x + x) as usize;
+                if !self.active[i] {
+                    continue;
+                }
                 let pixel = self.origin + UVec2::new(x, y);
                 let index = pixel.y * width + pixel.x;
                 let (mut sum, mut sum_sq) = (self.sum[i], self.sum_sq[i]);
-                for s in first..first + count {
+                // Pixel samples are numbered on from the ones it took.
+                let start = first + self.count[i];
+                self.count[i] += count;
+                for s in start..start + count {
                     let mut rng = SampleStream::new(seed, index, s);
                     let v = integrator.sample(ctx, pixel, &self.state[i], &mut rng, &mut scratch);
                     // (A sample may be negative: `zvidpt`'s roulette around a control variate
@@ -348,6 +422,8 @@ fn render_in_pool<A: Accel, I: Integrator>(
                 size,
                 sum: vec![[0; 3]; n],
                 sum_sq: vec![[0; 3]; n],
+                count: vec![0; n],
+                active: vec![true; n],
                 state: Vec::new(),
                 scratch: Scratch::default(),
             });
@@ -381,15 +457,25 @@ fn render_in_pool<A: Accel, I: Integrator>(
             return Err(Error::InvalidOption(format!("{}: the checkpoint holds more samples", c.path.display())));
         }
         let sums = &r.part.sums;
+        if !sums.counts.is_empty() && !settings.noise_target.is_some_and(|t| t.per_pixel) {
+            return Err(Error::InvalidOption(format!(
+                "{}: the checkpoint has per-pixel sample counts (adaptive sampling); resume it with --adaptive",
+                c.path.display()
+            )));
+        }
         tiles.par_iter_mut().for_each(|tile| {
             for (i, p) in tile.pixels() {
                 let j = (p.y * width + p.x) as usize;
                 (tile.sum[i], tile.sum_sq[i]) = (sums.sum[j], sums.sum_sq[j]);
+                tile.count[i] = sums.count(j);
             }
         });
         done += sums.spp;
     }
     let resumed_spp = done - first;
+    let per_pixel = settings.noise_target.is_some_and(|t| t.per_pixel);
+    let taken = |tiles: &[Tile<I::PixelState>]| tiles.iter().flat_map(|t| &t.count).map(|&c| u64::from(c)).sum::<u64>();
+    let resumed_samples = taken(&tiles);
     let bar = progress_bar(settings);
     bar.set_position(u64::from(resumed_spp));
     tiles.par_iter_mut().for_each(|tile| {
@@ -414,14 +500,15 @@ fn render_in_pool<A: Accel, I: Integrator>(
             seconds: resumed_seconds + budget_seconds(),
             training_iterations: integrator.training_iterations(),
         };
-        let tiles_x = width.div_ceil(ts) as usize;
-        let at = |j: usize| {
-            let (x, y) = (j as u32 % width, j as u32 / width);
-            let tile = &tiles[(y / ts) as usize * tiles_x + (x / ts) as usize];
-            let i = ((y - tile.origin.y) * tile.size.x + (x - tile.origin.x)) as usize;
-            (tile.sum[i], tile.sum_sq[i])
-        };
-        checkpoint::write(c, (width, height), &progress, at, prior)
+        let counts = per_pixel.then(|| row_major(tiles, width, height, |t, i| t.count[i]));
+        checkpoint::write(
+            c,
+            (width, height),
+            &progress,
+            |j| row_major_at(tiles, width, ts, j, |t, i| (t.sum[i], t.sum_sq[i])),
+            prior,
+            counts.as_deref(),
+        )
     };
     // Whole passes. A pass is one sample per pixel under a time budget (so the budget is
     // overshot by at most one pass) and a few samples otherwise (fewer, larger tasks).
@@ -448,9 +535,29 @@ fn render_in_pool<A: Accel, I: Integrator>(
         }
         if let Some(target) = settings.noise_target
             && done - first >= target.min_spp.max(2)
-            && relative_error(tiles.iter().flat_map(|t| t.sum.iter().zip(&t.sum_sq)), done - first) <= target.error
         {
-            break;
+            if target.per_pixel {
+                // Each pixel from its neighbours' error; the render ends when none is left.
+                let relative =
+                    row_major(&tiles, width, height, |t, i| relative_variance(&t.sum[i], &t.sum_sq[i], t.count[i]));
+                let counts = row_major(&tiles, width, height, |t, i| t.count[i]);
+                let errors = local_errors(&relative, &counts, width, height);
+                let min_spp = target.min_spp.max(2);
+                tiles.par_iter_mut().for_each(|tile| {
+                    for (i, p) in tile.pixels() {
+                        let e = errors[(p.y * width + p.x) as usize];
+                        tile.active[i] = tile.count[i] < min_spp || e > target.error;
+                    }
+                });
+                if !tiles.iter().any(|t| t.active.iter().any(|&a| a)) {
+                    break;
+                }
+            } else if relative_error(
+                tiles.iter().flat_map(|t| t.pixels().map(|(i, _)| (&t.sum[i], &t.sum_sq[i], t.count[i]))),
+            ) <= target.error
+            {
+                break;
+            }
         }
         let remaining = last.map_or(u32::MAX, |n| n - done);
         let pass = if settings.time_limit.is_some() { 1 } else { remaining.min(4) };
@@ -459,7 +566,7 @@ fn render_in_pool<A: Accel, I: Integrator>(
         }
         tiles
             .par_iter_mut()
-            .for_each(|tile| tile.run_pass(&ctx, integrator, settings.seed, width, offset + done, pass));
+            .for_each(|tile| tile.run_pass(&ctx, integrator, settings.seed, width, offset + first, pass));
         done += pass;
         match (settings.spp, settings.time_limit) {
             (Some(_), None) => bar.set_position(u64::from(done - first)),
@@ -491,16 +598,21 @@ fn render_in_pool<A: Accel, I: Integrator>(
     let seconds = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
     let noise = settings.noise_target.map(|target| {
-        let e = relative_error(tiles.iter().flat_map(|t| t.sum.iter().zip(&t.sum_sq)), done - first);
+        let e =
+            relative_error(tiles.iter().flat_map(|t| t.pixels().map(|(i, _)| (&t.sum[i], &t.sum_sq[i], t.count[i]))));
         (e, e <= target.error)
     });
+    let samples = taken(&tiles) - resumed_samples;
+    let counts = per_pixel.then(|| row_major(&tiles, width, height, |t, i| t.count[i]));
 
     let (mut rays, mut non_finite) = (0, 0);
     for tile in &tiles {
         rays += tile.scratch.rays;
         non_finite += tile.scratch.non_finite;
     }
-    let spp = done - first;
+    // With adaptive sampling, the most samples any pixel took (a pixel may stop, take up
+    // again when its neighbours' variance grows, and end below the passes run).
+    let spp = counts.as_ref().map_or(done - first, |c| c.iter().copied().max().unwrap_or(0));
     let (pixels, variance, partial) = if prior.is_some() || settings.samples.is_some() {
         // The whole image's exact sums, row-major: training passes are combined over the
         // whole image, and a part keeps its sums.
@@ -510,6 +622,7 @@ fn render_in_pool<A: Accel, I: Integrator>(
             spp,
             sum: vec![[0; 3]; (width * height) as usize],
             sum_sq: vec![[0; 3]; (width * height) as usize],
+            counts: counts.clone().unwrap_or_default(),
         };
         for tile in tiles.drain(..) {
             for (i, p) in tile.pixels() {
@@ -530,17 +643,17 @@ fn render_in_pool<A: Accel, I: Integrator>(
         for tile in tiles.drain(..) {
             for (i, p) in tile.pixels() {
                 let j = (p.y * width + p.x) as usize;
-                (pixels[j], variance[j]) = finish_pixel(&tile.sum[i], &tile.sum_sq[i], spp);
+                (pixels[j], variance[j]) = finish_counted(&tile.sum[i], &tile.sum_sq[i], tile.count[i], spp);
             }
         }
         (pixels, variance, None)
     };
-    let done = done - first;
+    let done = spp;
     let stats = RenderStats {
         spp: done,
         seconds,
         prepass_seconds,
-        samples: u64::from(done - resumed_spp) * u64::from(width * height),
+        samples,
         resumed_spp,
         resumed_seconds,
         checkpoints: checkpoints.0,
@@ -553,8 +666,38 @@ fn render_in_pool<A: Accel, I: Integrator>(
         prior_spp,
         partial,
         noise,
+        pixel_spp: counts.as_ref().map(|c| {
+            let (lo, hi) = c.iter().fold((u32::MAX, 0), |(lo, hi), &n| (lo.min(n), hi.max(n)));
+            (lo, c.iter().map(|&n| f64::from(n)).sum::<f64>() / c.len().max(1) as f64, hi)
+        }),
+        pixel_counts: counts,
     };
     Ok((Image { width, height, pixels, variance: Some(variance), spp: done + prior_spp }, stats))
+}
+
+/// `value(tile, index in tile)` of every pixel, row-major (computed tile by tile in parallel).
+fn row_major<S: Send + Sync, T: Default + Clone + Send>(
+    tiles: &[Tile<S>],
+    width: u32,
+    height: u32,
+    value: impl Fn(&Tile<S>, usize) -> T + Sync,
+) -> Vec<T> {
+    let per_tile: Vec<Vec<T>> = tiles.par_iter().map(|t| t.pixels().map(|(i, _)| value(t, i)).collect()).collect();
+    let mut out = vec![T::default(); width as usize * height as usize];
+    for (tile, values) in tiles.iter().zip(per_tile) {
+        for ((_, p), v) in tile.pixels().zip(values) {
+            out[(p.y * width + p.x) as usize] = v;
+        }
+    }
+    out
+}
+
+/// `value(tile, index in tile)` of pixel `j` (row-major) of tiles `ts` pixels wide.
+fn row_major_at<S, T>(tiles: &[Tile<S>], width: u32, ts: u32, j: usize, value: impl Fn(&Tile<S>, usize) -> T) -> T {
+    let tiles_x = width.div_ceil(ts) as usize;
+    let (x, y) = (j as u32 % width, j as u32 / width);
+    let tile = &tiles[(y / ts) as usize * tiles_x + (x / ts) as usize];
+    value(tile, ((y - tile.origin.y) * tile.size.x + (x - tile.origin.x)) as usize)
 }
 
 fn progress_bar(settings: &RenderSettings) -> ProgressBar {
