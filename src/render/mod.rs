@@ -560,7 +560,16 @@ fn render_in_pool<A: Accel, I: Integrator>(
             }
         }
         let remaining = last.map_or(u32::MAX, |n| n - done);
-        let pass = if settings.time_limit.is_some() { 1 } else { remaining.min(4) };
+        let mut pass = if settings.time_limit.is_some() { 1 } else { remaining.min(4) };
+        if per_pixel {
+            // With few pixels left, a pass of the usual size is mostly the judging around it
+            // (and one thread): the pixels left take up to a full image's pass of samples at
+            // once, never more than a sixteenth of the samples taken (so none overshoots its
+            // stop by more than about 6%).
+            let active = tiles.iter().map(|t| t.active.iter().filter(|&&a| a).count()).sum::<usize>().max(1);
+            let share = (pass as usize * (width * height) as usize / active).min(u32::MAX as usize) as u32;
+            pass = pass.max(share.min((done - first) / 16)).min(remaining);
+        }
         if done.checked_add(offset + pass).is_none() {
             break;
         }
