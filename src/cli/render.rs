@@ -555,6 +555,8 @@ mod tests {
         ("time", "path", "3"),
         ("noise-target", "path", "0.5"),
         ("min-spp", "path", "3"),
+        // (A switch: set by its name alone.)
+        ("adaptive", "path", ""),
         ("seed", "path", "7"),
         // (`auto` is Embree where it is compiled in: `bvh` is the other choice.)
         ("backend", "path", "bvh"),
@@ -597,9 +599,14 @@ mod tests {
         render_identity(&r, &load_scene(&r).unwrap()).entries
     }
 
-    /// `args` with `flag` set to `value` (replaced where it is given already).
+    /// `args` with `flag` set to `value` (replaced where it is given already; an empty value
+    /// sets a switch).
     fn with<'a>(args: &[&'a str], flag: &'a str, value: &'a str) -> Vec<&'a str> {
         let mut out = args.to_vec();
+        if value.is_empty() {
+            out.push(flag);
+            return out;
+        }
         match out.iter().position(|a| *a == flag) {
             Some(i) => out[i + 1] = value,
             None => out.extend([flag, value]),
@@ -626,8 +633,8 @@ mod tests {
             if *flag == "backend" && !crate::accel::EMBREE_AVAILABLE {
                 continue;
             }
-            // (--min-spp means something only with a noise target.)
-            let base_args: &[&str] = if *flag == "min-spp" {
+            // (--min-spp and --adaptive mean something only with a noise target.)
+            let base_args: &[&str] = if *flag == "min-spp" || *flag == "adaptive" {
                 &["--spp", "8", "--integrator", integrator, "--noise-target", "0.5"]
             } else {
                 &["--spp", "8", "--integrator", integrator]
