@@ -339,4 +339,29 @@ mod tests {
         longer.push(0);
         assert!(parse_partial(&longer, &path).is_err());
     }
+
+    /// Per-pixel sample counts (adaptive sampling) come back as written; a count above the
+    /// file's samples per pixel, or counts cut short, are refused; `merge` refuses them.
+    #[test]
+    fn per_pixel_counts_round_trip() {
+        let dir = std::env::temp_dir().join(format!("zvidpt-partial-counts-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("a.part");
+        let mut p = part(0, 5);
+        p.sums.counts = vec![5, 2, 3, 5, 0, 4];
+        super::super::commit(vec![stage_partial(&path, &p, &Metadata::default()).unwrap()]).unwrap();
+        assert_eq!(read_partial(&path).unwrap().0, p);
+        assert!(Partial::merge(vec![p.clone()]).unwrap_err().to_string().contains("per-pixel"));
+        for (counts, what) in [(vec![5, 2, 3, 5, 0, 6], "above spp"), (vec![5, 2, 3], "short")] {
+            let mut bad = p.clone();
+            bad.sums.counts = counts;
+            let s = &bad.sums;
+            let header = [s.width, s.height, bad.first, s.spp, bad.total_spp];
+            let staged =
+                stage_sums(&path, &Metadata::default(), header, |j| (s.sum[j], s.sum_sq[j]), None, Some(&s.counts));
+            super::super::commit(vec![staged.unwrap()]).unwrap();
+            assert!(read_partial(&path).is_err(), "counts {what} were read");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
