@@ -88,30 +88,28 @@ pub fn relative_error<'a>(sums: impl Iterator<Item = (&'a [i128; 3], &'a [i128; 
 /// A pixel's share of the squared relative error, summed over its channels, in fixed point
 /// ([`relative_error`]).
 fn error_share(s: &[i128; 3], q: &[i128; 3], spp: u32) -> u128 {
+    relative_in_fixed_point(s, q, spp, f64::from(spp.max(1)))
+}
+
+/// A pixel's relative per-sample variance, summed over its channels, in fixed point:
+/// `Σ σ²/(μ² + 0.01)` (its [`error_share`] times its samples).
+fn relative_variance(s: &[i128; 3], q: &[i128; 3], spp: u32) -> u128 {
+    relative_in_fixed_point(s, q, spp, 1.0)
+}
+
+/// `Σ σ²/(per · (μ² + 0.01))` over the channels of a pixel of `spp` samples, in fixed point.
+fn relative_in_fixed_point(s: &[i128; 3], q: &[i128; 3], spp: u32, per: f64) -> u128 {
     let (mean, var) = finish_pixel(s, q, spp);
     let mut total = 0u128;
     for c in 0..3 {
         let (m, v) = (f64::from(mean[c]), f64::from(var[c]));
-        let share = v / (f64::from(spp.max(1)) * (m * m + 0.01));
+        let share = v / (per * (m * m + 0.01));
         // Non-finite or absurd shares count as the largest representable.
         total = total.saturating_add(if share.is_finite() {
             (share.min(1e12) * ERROR_SCALE) as u128
         } else {
             u128::MAX >> 8
         });
-    }
-    total
-}
-
-/// A pixel's relative per-sample variance, summed over its channels, in fixed point:
-/// `Σ σ²/(μ² + 0.01)` (its [`error_share`] times its samples).
-fn relative_variance(s: &[i128; 3], q: &[i128; 3], spp: u32) -> u128 {
-    let (mean, var) = finish_pixel(s, q, spp);
-    let mut total = 0u128;
-    for c in 0..3 {
-        let (m, v) = (f64::from(mean[c]), f64::from(var[c]));
-        let r = v / (m * m + 0.01);
-        total = total.saturating_add(if r.is_finite() { (r.min(1e12) * ERROR_SCALE) as u128 } else { u128::MAX >> 8 });
     }
     total
 }
@@ -538,9 +536,11 @@ fn render_in_pool<A: Accel, I: Integrator>(
         {
             if target.per_pixel {
                 // Each pixel from its neighbours' error; the render ends when none is left.
-                let relative =
-                    row_major(&tiles, width, height, |t, i| relative_variance(&t.sum[i], &t.sum_sq[i], t.count[i]));
-                let counts = row_major(&tiles, width, height, |t, i| t.count[i]);
+                let (relative, counts): (Vec<u128>, Vec<u32>) = row_major(&tiles, width, height, |t, i| {
+                    (relative_variance(&t.sum[i], &t.sum_sq[i], t.count[i]), t.count[i])
+                })
+                .into_iter()
+                .unzip();
                 let errors = local_errors(&relative, &counts, width, height);
                 let min_spp = target.min_spp.max(2);
                 tiles.par_iter_mut().for_each(|tile| {
@@ -657,9 +657,8 @@ fn render_in_pool<A: Accel, I: Integrator>(
         }
         (pixels, variance, None)
     };
-    let done = spp;
     let stats = RenderStats {
-        spp: done,
+        spp,
         seconds,
         prepass_seconds,
         samples,
@@ -681,7 +680,7 @@ fn render_in_pool<A: Accel, I: Integrator>(
         }),
         pixel_counts: counts,
     };
-    Ok((Image { width, height, pixels, variance: Some(variance), spp: done + prior_spp }, stats))
+    Ok((Image { width, height, pixels, variance: Some(variance), spp: spp + prior_spp }, stats))
 }
 
 /// `value(tile, index in tile)` of every pixel, row-major (computed tile by tile in parallel).
