@@ -116,7 +116,7 @@ fn relative_in_fixed_point(s: &[i128; 3], q: &[i128; 3], spp: u32, per: f64) -> 
 
 /// Each pixel's estimated relative error for adaptive sampling: the relative per-sample
 /// variance of its 3 × 3 neighbourhood *other than itself* (`relative`, row-major, from
-/// [`relative_variance`]), averaged, over the pixel's own sample count (`counts`). A pixel's
+/// `relative_variance`), averaged, over the pixel's own sample count (`counts`). A pixel's
 /// own samples never decide when it stops, so stopping does not favour the pixels whose
 /// samples happened to agree (a pixel that has not yet met a rare bright path would look
 /// converged to itself): its stopping time is independent of its own samples given its
