@@ -269,35 +269,88 @@ impl<S: Send + Sync> Tile<S> {
                     continue;
                 }
                 let pixel = self.origin + UVec2::new(x, y);
-                let index = pixel.y * width + pixel.x;
-                let (mut sum, mut sum_sq) = (self.sum[i], self.sum_sq[i]);
                 // Pixel samples are numbered on from the ones it took.
                 let start = first + self.count[i];
                 self.count[i] += count;
-                for s in start..start + count {
-                    let mut rng = SampleStream::new(seed, index, s);
-                    let v = integrator.sample(ctx, pixel, &self.state[i], &mut rng, &mut scratch);
-                    // (A sample may be negative: `zvidpt`'s roulette around a control variate
-                    // is unbiased with signed samples.)
-                    debug_assert!(v.is_finite(), "sample {v} at {pixel}");
-                    // Never silently: a non-finite sample is counted and reported.
-                    let v = if v.is_finite() {
-                        v
-                    } else {
-                        scratch.non_finite += 1;
-                        Vec3A::ZERO
-                    };
-                    for c in 0..3 {
-                        let x = f64::from(v[c]);
-                        sum[c] = sum[c].saturating_add(to_fixed(x));
-                        sum_sq[c] = sum_sq[c].saturating_add(to_fixed(x * x));
-                    }
-                }
-                self.sum[i] = sum;
-                self.sum_sq[i] = sum_sq;
+                let job =
+                    PixelJob { ctx, integrator, pixel, state: &self.state[i], seed, index: pixel.y * width + pixel.x };
+                let (sum, sum_sq) = if count >= 2 * SAMPLE_CHUNK {
+                    // Many samples of one pixel (the last pixels of an adaptive render, or
+                    // large passes): chunks of them are open to idle threads. The sums are
+                    // fixed point, so their order leaves the bits as they are.
+                    let chunks = count.div_ceil(SAMPLE_CHUNK);
+                    let (sum, sum_sq, rays, non_finite) = (0..chunks)
+                        .into_par_iter()
+                        .map(|k| {
+                            let mut own = Scratch::default();
+                            let from = start + k * SAMPLE_CHUNK;
+                            let (s, q) = job.samples(from..(from + SAMPLE_CHUNK).min(start + count), &mut own);
+                            (s, q, own.rays, own.non_finite)
+                        })
+                        .reduce(
+                            || ([0; 3], [0; 3], 0, 0),
+                            |a, b| (add3(a.0, b.0), add3(a.1, b.1), a.2 + b.2, a.3 + b.3),
+                        );
+                    scratch.rays += rays;
+                    scratch.non_finite += non_finite;
+                    (sum, sum_sq)
+                } else {
+                    job.samples(start..start + count, &mut scratch)
+                };
+                self.sum[i] = add3(self.sum[i], sum);
+                self.sum_sq[i] = add3(self.sum_sq[i], sum_sq);
             }
         }
         self.scratch = scratch;
+    }
+}
+
+/// Samples of one pixel in a pass at most this many to a task: a pass larger than two of them
+/// is split among the threads (about 0.1 ms of sampling each, well above rayon's cost of a task).
+const SAMPLE_CHUNK: u32 = 64;
+
+/// Element-wise saturating sum of fixed-point channel sums.
+#[inline]
+fn add3(a: [i128; 3], b: [i128; 3]) -> [i128; 3] {
+    [a[0].saturating_add(b[0]), a[1].saturating_add(b[1]), a[2].saturating_add(b[2])]
+}
+
+/// What one pixel's samples need: the integrator, its state for the pixel and the pixel's place
+/// in the sample streams.
+struct PixelJob<'a, A: Accel, I: Integrator> {
+    ctx: &'a RenderContext<'a, A>,
+    integrator: &'a I,
+    pixel: UVec2,
+    state: &'a I::PixelState,
+    seed: u64,
+    index: u32,
+}
+
+impl<A: Accel, I: Integrator> PixelJob<'_, A, I> {
+    /// The fixed-point sums (and sums of squares) of the samples numbered `range`.
+    #[inline]
+    fn samples(&self, range: std::ops::Range<u32>, scratch: &mut Scratch) -> ([i128; 3], [i128; 3]) {
+        let (mut sum, mut sum_sq) = ([0i128; 3], [0i128; 3]);
+        for s in range {
+            let mut rng = SampleStream::new(self.seed, self.index, s);
+            let v = self.integrator.sample(self.ctx, self.pixel, self.state, &mut rng, scratch);
+            // (A sample may be negative: `zvidpt`'s roulette around a control variate is
+            // unbiased with signed samples.)
+            debug_assert!(v.is_finite(), "sample {v} at {}", self.pixel);
+            // Never silently: a non-finite sample is counted and reported.
+            let v = if v.is_finite() {
+                v
+            } else {
+                scratch.non_finite += 1;
+                Vec3A::ZERO
+            };
+            for c in 0..3 {
+                let x = f64::from(v[c]);
+                sum[c] = sum[c].saturating_add(to_fixed(x));
+                sum_sq[c] = sum_sq[c].saturating_add(to_fixed(x * x));
+            }
+        }
+        (sum, sum_sq)
     }
 }
 
