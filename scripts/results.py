@@ -170,6 +170,32 @@ def cycles(a, s, out, log):
     return md, head
 
 
+def missing_files(scene):
+    """The files `scene`'s pbrt-v4 file (and the files it includes) names that are not there
+    or are empty: the public mirror of the collection leaves some of its largest files out."""
+    main = scene / "pbrt" / "scene-v4.pbrt"
+    if not main.is_file():
+        return [str(main)]
+    lacking, todo, seen = [], [main], set()
+    while todo:
+        f = todo.pop()
+        if f in seen:
+            continue
+        seen.add(f)
+        text = f.read_text(errors="replace")
+        for m in re.finditer(r'"string filename"\s*\[?\s*"([^"]+)"|^\s*(?:Include|Import)\s+"([^"]+)"', text, re.M):
+            name = m.group(1) or m.group(2)
+            directive = re.findall(r"^\s*([A-Z][A-Za-z]+)", text[:m.start()], re.M)
+            if m.group(1) and directive and directive[-1] == "Film":
+                continue  # the render's output, not an input
+            g = main.parent / name
+            if not g.is_file() or g.stat().st_size == 0:
+                lacking.append(name)
+            elif m.group(2) or g.suffix == ".pbrt":
+                todo.append(g)
+    return lacking
+
+
 def suite(a, s, out, log):
     """Bitterli's complete scenes at equal time; None without the collection."""
     collection = a.bitterli or os.environ.get("BITTERLI")
@@ -179,14 +205,23 @@ def suite(a, s, out, log):
     t0 = time.time()
     links = out / "bitterli-scenes"
     links.mkdir(parents=True, exist_ok=True)
+    if not Path(collection).is_dir():
+        sys.exit(f"{collection}: not a folder (Bitterli's collection, one folder per scene)")
+    used = []
     for name in COMPLETE:
         src = Path(collection).resolve() / name
-        if not (src / "pbrt" / "scene-v4.pbrt").exists():
-            sys.exit(f"{src}: no pbrt/scene-v4.pbrt (is {collection} Bitterli's collection?)")
         link = links / name
         if link.is_symlink() or link.exists():
             link.unlink()
+        lacking = missing_files(src)
+        if lacking:
+            print(f"({name}: {len(lacking)} of its files are missing from this copy, e.g. {lacking[0]}: "
+                  "left out of the suite)", file=sys.stderr)
+            continue
         link.symlink_to(src)
+        used.append(name)
+    if not used:
+        sys.exit(f"{collection}: none of the complete scenes ({', '.join(COMPLETE)}) is there")
     d = out / "suite"
     run([sys.executable, "scripts/suite.py", links, d, "--time", s["suite_time"], "--downscale", "8", "--ref-spp",
          s["suite_ref"], "--seeds", s["suite_seeds"], "--integrators", s["suite_integrators"], "--zvidpt", a.zvidpt], log)
@@ -202,7 +237,7 @@ def suite(a, s, out, log):
     geo = [r for r in rows if r.startswith("| geometric")][0].strip("|").split("|")[1 + n_int].strip()
     seeds = len(s["suite_seeds"].split(","))
     head = (f"path's MSE ÷ the integrator's at {s['suite_time']} s, {seeds} seeds, geometric mean", "1",
-            f"{geo} (ahead on {ahead} of {len(COMPLETE)})", "")
+            f"{geo} (ahead on {ahead} of {len(used)})", "")
     return stamp(a.m, a.mode, time.time() - t0) + "\n\n" + table, head, d / "suite.png"
 
 

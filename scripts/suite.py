@@ -154,11 +154,24 @@ def main():
         return {k: sum(v) / len(v) for k, v in m.items()}
 
     mean, rest = means("mse"), means("mse_rest")
+    # The seeds' spread: the standard error of each mean MSE (one render's MSE is heavy-tailed
+    # where a light smaller than a pixel is seen: a few seeds decide little there).
+    spread = {}
+    for r in rows:
+        spread.setdefault((r["scene"], r["integrator"]), []).append(r["mse"])
+    spread = {k: (math.sqrt(sum((x - sum(v) / len(v)) ** 2 for x in v) / (len(v) - 1) / len(v)) if len(v) > 1
+                  else None) for k, v in spread.items()}
+
+    def mse_cell(s, i):
+        if (s, i) not in mean:
+            return "-"
+        se = spread[(s, i)]
+        return f"{mean[(s, i)]:.4g}" + (f" ± {se:.2g}" if se is not None else "")
     base = integrators[0]
     others = integrators[1:]
     lines = [f"Equal time {a.time:g} s per render, {a.resolution if not a.downscale else f'film / {a.downscale}'}, "
              f"seeds {a.seeds}; MSE against `path` at {a.ref_spp} spp less the reference's own noise (measured "
-             f"from two independent halves), mean over the seeds; ratio = {base}'s MSE / "
+             f"from two independent halves), mean over the seeds ± its standard error; ratio = {base}'s MSE / "
              f"the integrator's (above 1: better than {base}); rest: the same ratio without the reference's "
              f"brightest {100 * float(BRIGHT):g}% of pixels (lights smaller than a pixel seen directly, whose error is "
              f"the pixel footprint's and falls with samples per second alone).", "",
@@ -176,7 +189,7 @@ def main():
         return "-"
 
     for s in scenes:
-        cells = [f"{mean[(s, i)]:.4g}" if (s, i) in mean else "-" for i in integrators]
+        cells = [mse_cell(s, i) for i in integrators]
         cells += [ratio(mean, s, i, "mse") for i in others] + [ratio(rest, s, i, "rest") for i in others]
         lines.append(f"| {s} | " + " | ".join(cells) + " |")
     geo = [f"{math.exp(sum(v) / len(v)):.2f}" if v else "-" for v in logs.values()]
