@@ -80,50 +80,27 @@ fn parity(index: usize, width: u32) -> usize {
     (x + y) & 1
 }
 
-/// Share of each parity's pixels, those of highest variance, left out of its pass variance.
-///
-/// A light smaller than a pixel, seen directly or through glass, makes a handful of pixels'
-/// variance thousands of times the rest of the image's, and a plain mean over the image is
-/// then decided by whether a pass happened to meet that light: a pass that missed it looks
-/// nearly noiseless and takes almost all the weight, the passes that met it (the larger ones,
-/// the final render's) almost none. The weights stay unbiased (they come from the other
-/// parity), but those pixels then read the luck of one training pass: on Bitterli's
-/// water-caustic at 128 × 128, the light alone (`--max-depth 1`), 2,510 samples per pixel, the
-/// pixel holding most of the light read 0, 0 and 4,136 with seeds 1–3 (the path tracer 5,777,
-/// 6,828 and 7,114; with the trim 5,885, 6,081 and 5,316). Without its top hundredth of
-/// pixels, a pass's variance is the image's bulk, which is what the weights are for: how good
-/// each pass's walk is. (The cost: with 2 samples a pixel's variance estimate is heavy-tailed
-/// itself, and the trim lowers a tiny pass's variance by about 9% against 2% at 32 samples, a
-/// slight overweight of the early passes.)
-const TRIMMED_SHARE: f64 = 0.01;
-
-/// Mean per-sample variance of each parity's pixels (over channels), without the
-/// [`TRIMMED_SHARE`] of highest, from the sums of pixel `i`'s `spp(i)` samples (pixels of
-/// fewer than 2 left out). A parity without pixels (a one-pixel image) reports 1 for both,
-/// i.e. weights by sample count alone.
+/// Mean per-sample variance of each parity's pixels (over channels), from the sums of pixel
+/// `i`'s `spp(i)` samples (pixels of fewer than 2 left out). A parity without pixels (a
+/// one-pixel image) reports 1 for both, i.e. weights by sample count alone.
 fn parity_variance(width: u32, spp: impl Fn(usize) -> u32, sum: &[[f64; 3]], sum_sq: &[[f64; 3]]) -> [f64; 2] {
-    let mut per_pixel: [Vec<f64>; 2] = [Vec::with_capacity(sum.len() / 2 + 1), Vec::with_capacity(sum.len() / 2 + 1)];
+    let (mut total, mut count) = ([0.0f64; 2], [0u64; 2]);
     for (i, (s, q)) in sum.iter().zip(sum_sq).enumerate() {
         let n = spp(i);
         if n < 2 {
             continue;
         }
-        let v: f64 = (0..3).map(|c| mean_and_variance(s[c], q[c], f64::from(n)).1).sum::<f64>() / 3.0;
-        per_pixel[parity(i, width)].push(if v.is_nan() { f64::INFINITY } else { v });
+        let p = parity(i, width);
+        for c in 0..3 {
+            total[p] += mean_and_variance(s[c], q[c], f64::from(n)).1;
+        }
+        count[p] += 3;
     }
-    if per_pixel.iter().any(Vec::is_empty) {
+    if count[0] == 0 || count[1] == 0 {
         return [1.0; 2];
     }
-    let trimmed_mean = |v: &mut Vec<f64>| {
-        let keep = v.len() - (v.len() as f64 * TRIMMED_SHARE) as usize;
-        if keep < v.len() {
-            v.select_nth_unstable_by(keep, f64::total_cmp);
-        }
-        v[..keep].iter().sum::<f64>() / keep as f64
-    };
     let clamp = |v: f64| if v.is_nan() { VARIANCE_RANGE.1 } else { v.clamp(VARIANCE_RANGE.0, VARIANCE_RANGE.1) };
-    let [a, b] = &mut per_pixel;
-    [clamp(trimmed_mean(a)), clamp(trimmed_mean(b))]
+    [clamp(total[0] / count[0] as f64), clamp(total[1] / count[1] as f64)]
 }
 
 impl PriorSamples {
@@ -300,6 +277,23 @@ impl PriorSamples {
             return done.combine(spp, counts, sum, sum_sq);
         }
         let v = if spp >= 2 { parity_variance(self.width, count, sum, sum_sq) } else { self.last.unwrap_or([1.0; 2]) };
+        // The training passes together are no better per sample than the final passes: their
+        // weight is scaled down (per parity, from the other parity's figures like every
+        // weight) until their variance per sample is at least the final passes'. Each pass
+        // is floored by its successor's variance as it comes, but a light smaller than a
+        // pixel makes an image's variance the luck of meeting it: where every training pass
+        // missed it and the final passes met it, the training took almost all the weight
+        // and the light's pixels read the training's zero. (Bitterli's water-caustic, 128 ×
+        // 128, 8 s: the pixel seeing the light, reference 5,642, read below 1 in every
+        // render; the path tracer 6,180–6,250.)
+        let scale = |p: usize| {
+            if spp < 2 || self.weight[p] <= 0.0 {
+                return 1.0;
+            }
+            let training = f64::from(self.spp) / self.weight[p];
+            (training / v[1 - p]).min(1.0)
+        };
+        let scale = [scale(0), scale(1)];
         // The image's count (the most samples any pixel took): a pixel's variance of the mean
         // times it is what the image reports.
         let total_spp = f64::from(self.spp) + f64::from(spp);
@@ -311,7 +305,8 @@ impl PriorSamples {
             let n = f64::from(spp);
             // A pixel of parity p is weighted by the other parity's variance.
             let w = [n / v[1], n / v[0]];
-            let total = self.weight[p] + w[p];
+            let a = scale[p];
+            let total = a * self.weight[p] + w[p];
             if total <= 0.0 {
                 continue;
             }
@@ -321,9 +316,9 @@ impl PriorSamples {
                     1 => (s[c], 0.0),
                     _ => mean_and_variance(s[c], q[c], n),
                 };
-                pixels[i][c] = ((self.weighted[i][c] + w[p] * mean) / total) as f32;
+                pixels[i][c] = ((a * self.weighted[i][c] + w[p] * mean) / total) as f32;
                 let var_mean =
-                    (self.variance[i][c] + if spp > 0 { w[p] * w[p] * s2 / n } else { 0.0 }) / (total * total);
+                    (a * a * self.variance[i][c] + if spp > 0 { w[p] * w[p] * s2 / n } else { 0.0 }) / (total * total);
                 variance[i][c] = (var_mean * total_spp) as f32;
             }
         }
@@ -401,27 +396,24 @@ mod tests {
         }
     }
 
-    /// One pixel of enormous variance (a light smaller than the pixel, met by one pass and not
-    /// by the others) does not decide the weights: the 400 other pixels do. With the plain
-    /// mean over pixels, the pass that met the light would weigh 1/1000 of the others.
+    /// Training passes that all missed a light smaller than a pixel (so they look nearly
+    /// noiseless) weigh no more per sample than the final pass that met it, whose variance
+    /// that light makes 1000 times theirs: every sample counts alike then. Without the floor
+    /// the final pass would weigh 1/1000 per sample of the training's, and the image would
+    /// read the training's mean.
     #[test]
-    fn one_bright_pixel_does_not_decide_the_weights() {
-        let (w, h) = (20, 20);
+    fn training_is_no_better_than_the_final_passes() {
+        let (w, h) = (4, 4);
         let mut prior = PriorSamples::new(w, h);
-        // Three passes of 8 spp, per-sample variance 1 everywhere, means 1, 2 and 3; in the
-        // first, pixel 21 (x 1, y 1: even parity) meets the light, variance 1e6.
-        let (s, mut q) = pass(&[[1.0; 3]; 400], 8, 1.0);
-        q[21] = [8.0 * (1.0 + 1e6); 3];
-        assert!(prior.add_pass(8, &s, &q));
-        let (s, q) = pass(&[[2.0; 3]; 400], 8, 1.0);
-        assert!(prior.add_pass(8, &s, &q));
-        let (s, q) = pass(&[[3.0; 3]; 400], 8, 1.0);
-        let (pixels, _) = prior.combine(8, None, &s, &q);
-        // The odd parity is weighted by the even parity's variance: equal weights, mean 2.
-        for (i, p) in pixels.iter().enumerate() {
-            if parity(i, w) == 1 {
-                assert!((p[0] - 2.0).abs() < 1e-5, "pixel {i}: {p:?}");
-            }
+        for _ in 0..2 {
+            let (s, q) = pass(&[[1.0; 3]; 16], 8, 0.01);
+            assert!(prior.add_pass(8, &s, &q));
+        }
+        let (s, q) = pass(&[[4.0; 3]; 16], 16, 0.01 * 1000f64.sqrt());
+        let (pixels, _) = prior.combine(16, None, &s, &q);
+        // 16 training samples of mean 1 and 16 final samples of mean 4, weighted alike: 2.5.
+        for p in &pixels {
+            assert!((p[0] - 2.5).abs() < 1e-5, "{p:?}");
         }
     }
 
