@@ -22,7 +22,7 @@ pub use passes::{PriorSamples, mean_and_variance, mean_variance};
 pub use png_out::write_rgb8 as write_rgb8_png;
 pub use png_out::{stage_png, to_srgb8, write_png};
 pub use sums::{Partial, PixelSums};
-pub(crate) use sums::{finish_counted, finish_pixel, to_fixed};
+pub(crate) use sums::{add_fixed, finish_counted, finish_pixel, to_fixed};
 
 /// Most pixels an image may have, rendered or read: 2^26 (e.g. 8192 × 8192). A render peaks
 /// at about 114 bytes per pixel (`path`) and 256 (`zvidpt`, training passes combined; 128-bit

@@ -8,6 +8,12 @@ use crate::{Error, Result};
 /// Fixed-point scale of the per-pixel sums: 2^40.
 const FIXED_SCALE: f64 = (1u64 << 40) as f64;
 
+/// Channel-wise sum of two fixed-point channel sums (saturating, as every fixed-point sum).
+#[inline]
+pub(crate) fn add_fixed(a: [i128; 3], b: [i128; 3]) -> [i128; 3] {
+    std::array::from_fn(|c| a[c].saturating_add(b[c]))
+}
+
 /// A sample (or its square) in fixed point, rounded to the nearest 2^-40. Sums of these are
 /// exact integers, so the sums of any split of a pixel's samples add up to the same bits as
 /// one render's: merged parts give bit-identical pixels. (The rounding moves a sample by at
@@ -146,7 +152,7 @@ impl Partial {
         let mut merged = parts.swap_remove(0);
         let add = |into: &mut [[i128; 3]], from: &[[i128; 3]]| {
             for (acc, v) in into.iter_mut().zip(from) {
-                *acc = std::array::from_fn(|c| acc[c].saturating_add(v[c]));
+                *acc = add_fixed(*acc, *v);
             }
         };
         for p in &parts {

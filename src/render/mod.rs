@@ -9,7 +9,7 @@ pub mod interrupt;
 mod scene;
 
 use crate::accel::Accel;
-use crate::film::{Image, Partial, PixelSums, finish_counted, finish_pixel, to_fixed};
+use crate::film::{Image, Partial, PixelSums, add_fixed, finish_counted, finish_pixel, to_fixed};
 use crate::geometry::{UVec2, Vec3A};
 use crate::integrator::{Integrator, RenderContext, Scratch};
 use crate::light::LightSampling;
@@ -289,7 +289,7 @@ impl<S: Send + Sync> Tile<S> {
                         })
                         .reduce(
                             || ([0; 3], [0; 3], 0, 0),
-                            |a, b| (add3(a.0, b.0), add3(a.1, b.1), a.2 + b.2, a.3 + b.3),
+                            |a, b| (add_fixed(a.0, b.0), add_fixed(a.1, b.1), a.2 + b.2, a.3 + b.3),
                         );
                     scratch.rays += rays;
                     scratch.non_finite += non_finite;
@@ -297,8 +297,8 @@ impl<S: Send + Sync> Tile<S> {
                 } else {
                     job.samples(start..start + count, &mut scratch)
                 };
-                self.sum[i] = add3(self.sum[i], sum);
-                self.sum_sq[i] = add3(self.sum_sq[i], sum_sq);
+                self.sum[i] = add_fixed(self.sum[i], sum);
+                self.sum_sq[i] = add_fixed(self.sum_sq[i], sum_sq);
             }
         }
         self.scratch = scratch;
@@ -308,12 +308,6 @@ impl<S: Send + Sync> Tile<S> {
 /// Samples of one pixel in a pass at most this many to a task: a pass larger than two of them
 /// is split among the threads (about 0.1 ms of sampling each, well above rayon's cost of a task).
 const SAMPLE_CHUNK: u32 = 64;
-
-/// Element-wise saturating sum of fixed-point channel sums.
-#[inline]
-fn add3(a: [i128; 3], b: [i128; 3]) -> [i128; 3] {
-    [a[0].saturating_add(b[0]), a[1].saturating_add(b[1]), a[2].saturating_add(b[2])]
-}
 
 /// What one pixel's samples need: the integrator, its state for the pixel and the pixel's place
 /// in the sample streams.
