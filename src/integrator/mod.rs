@@ -68,6 +68,10 @@ pub struct Scratch {
     /// The current camera sample's seen light so far (emission at its first hit and behind
     /// delta lobes from there, weighted as in the sample: [`seen`]), where a walk records it.
     pub seen: Vec3A,
+    /// Rays the current camera sample's delta prefix has traced (the camera's and each behind
+    /// a delta lobe while every scatter so far was delta): what one more film point of the
+    /// seen light costs there.
+    pub seen_rays: u32,
 }
 
 /// A light-transport estimator: one unbiased sample of a pixel's radiance at a time, generic

@@ -376,7 +376,7 @@ impl LearnedZvidpt {
     /// deposited, each pixel's sums and sums of squares (row-major), and each pixel's sums of
     /// its seen light and the rest ([`SeenStats`]) with the rays traced.
     fn train_pass<A: Accel>(&self, ctx: &RenderContext<A>, guide: &LearnedGuide, seed: u64, spp: u32) -> TrainPass {
-        type Row = Vec<([f64; 3], [f64; 3], [f64; 4])>;
+        type Row = Vec<([f64; 3], [f64; 3], [f64; 5])>;
         let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
         let walker = Walker { zvidpt: self, ctx, guide };
         // Each worker deposits into its own accumulators, summed afterwards (integer sums:
@@ -392,7 +392,7 @@ impl LearnedZvidpt {
                     for x in 0..width {
                         let pixel = UVec2::new(x, y);
                         let reference = self.pixel_reference(ctx, guide, pixel, seed, &mut scratch);
-                        let (mut sum, mut sum_sq, mut parts) = ([0.0f64; 3], [0.0f64; 3], [0.0f64; 4]);
+                        let (mut sum, mut sum_sq, mut parts) = ([0.0f64; 3], [0.0f64; 3], [0.0f64; 5]);
                         // Iteration k takes samples 2^k .. 2^(k+1) of the pixel's sequence (an
                         // aligned block: stratified by itself, and with the others).
                         for s in spp..2 * spp {
@@ -420,6 +420,7 @@ impl LearnedZvidpt {
                             parts[1] += seen * seen;
                             parts[2] += rest;
                             parts[3] += rest * rest;
+                            parts[4] += f64::from(scratch.seen_rays);
                         }
                         row.push((sum, sum_sq, parts));
                     }
@@ -562,7 +563,7 @@ struct TrainPass {
     deposits: Deposits,
     sum: Vec<[f64; 3]>,
     sum_sq: Vec<[f64; 3]>,
-    seen: Vec<[f64; 4]>,
+    seen: Vec<[f64; 5]>,
     rays: u64,
 }
 
@@ -608,6 +609,7 @@ impl<A: Accel> Walker<'_, A> {
         let ctx = self.ctx;
         let ray = ctx.scene.camera.ray(ctx.scene.camera.film_point(pixel, rng.pixel_2d()));
         scratch.rays += 1;
+        scratch.seen_rays = 1;
         // Paths of at most `max_depth` segments: the camera's is the first.
         if ctx.max_depth == 0 {
             return Vec3A::ZERO;
@@ -835,6 +837,9 @@ impl<A: Accel> Walker<'_, A> {
         let throughput = s.weight / q;
         let ray = si.spawn_ray(s.dir);
         scratch.rays += 1;
+        if walk.prefix && s.delta {
+            scratch.seen_rays += 1;
+        }
         let Some(hit) = ctx.accel.intersect(&ray) else {
             // The environment: all of it behind a delta lobe, else its share against NEE.
             let env = if s.delta {
