@@ -15,7 +15,10 @@ Four studies, each the source of one row of the README's headline table:
 2. cornell-mitsuba against Mitsuba 3 at equal time (peers/race.py; skipped without pip's
    `mitsuba`).
 3. Bitterli's seven complete scenes at equal time (scripts/suite.py; skipped without
-   --bitterli or $BITTERLI, the collection's root folder).
+   --bitterli or $BITTERLI, the collection's root folder). --quick renders no reference: it
+   measures each integrator's MSE as its variance over pairs of seeds (`suite.py
+   --seed-pairs`; every integrator is unbiased), which needs no reference and carries no
+   reference noise; --full measures it against 16384-spp references.
 4. cornell-paper against Blender's Cycles, path tracing and path guiding, at equal time
    (peers/race_cycles.py; skipped without pip's `bpy`).
 
@@ -40,11 +43,11 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 COMPLETE = ["coffee", "cornell-box", "hair-curl", "veach-bidir", "veach-mis", "volumetric-caustic", "water-caustic"]
 MODES = {
-    "quick": dict(ttm_ref=512, runs=2, race_time=10, race_seeds="1,2", race_ref=512, suite_time=8, suite_ref=512,
-                  suite_seeds="1,2", suite_integrators="path;zvidpt", cycles_time=5, cycles_ref=256,
+    "quick": dict(ttm_ref=512, runs=2, race_time=10, race_seeds="1,2", race_ref=512, suite_time=8, suite_ref=0,
+                  suite_seeds="1,2,3,4", suite_integrators="path;zvidpt", cycles_time=5, cycles_ref=256,
                   cycles_integrators="path;zvidpt"),
     "full": dict(ttm_ref=8192, runs=2, race_time=20, race_seeds="1,2", race_ref=4096, suite_time=8, suite_ref=16384,
-                 suite_seeds="1,2,3,4", suite_integrators="path;zvidpt;jensen --learned-guide on", cycles_time=20,
+                 suite_seeds="1,2,3,4,5,6,7,8", suite_integrators="path;zvidpt;jensen --learned-guide on", cycles_time=20,
                  cycles_ref=8192, cycles_integrators="path;zvidpt;jensen --learned-guide on"),
 }
 
@@ -224,7 +227,8 @@ def suite(a, s, out, log):
         sys.exit(f"{collection}: none of the complete scenes ({', '.join(COMPLETE)}) is there")
     d = out / "suite"
     run([sys.executable, "scripts/suite.py", links, d, "--time", s["suite_time"], "--downscale", "8", "--ref-spp",
-         s["suite_ref"], "--seeds", s["suite_seeds"], "--integrators", s["suite_integrators"], "--zvidpt", a.zvidpt], log)
+         s["suite_ref"], "--seeds", s["suite_seeds"], "--integrators", s["suite_integrators"], "--zvidpt", a.zvidpt,
+         *(["--seed-pairs"] if not s["suite_ref"] else [])], log)
     table = (d / "suite.md").read_text().strip()
     rows = [r for r in table.splitlines() if r.startswith("| ") and not r.startswith("| scene")]
     n_int = len(s["suite_integrators"].split(";"))

@@ -2,7 +2,7 @@
 references, as one table.
 
     python3 scripts/suite.py SCENES OUT [--time 20] [--resolution 160x90 | --downscale 8] [--ref-spp 4096]
-        [--seeds 1,2] [--integrators "path;zvidpt;jensen --learned-guide on"] [--zvidpt BIN]
+        [--seeds 1,2] [--integrators "path;zvidpt;jensen --learned-guide on"] [--seed-pairs] [--zvidpt BIN]
 
 SCENES is a folder of scene folders; each is a scene zvidpt opens (scene.toml, scene.xml or
 scene.pbrt inside, or pbrt/scene-v4.pbrt as in Bitterli's collection). For each scene:
@@ -14,11 +14,18 @@ scene.pbrt inside, or pbrt/scene-v4.pbrt as in Bitterli's collection). For each 
 2. every integrator (a `zvidpt render` flag string; `;` between them) for --time seconds per
    seed, its MSE against the reference (`zvidpt diff`).
 
+With --seed-pairs no reference is rendered: each integrator's MSE is its variance, measured
+from its own renders taken in pairs of seeds (1 and 2, 3 and 4, ...): half the mean squared
+difference of the two images. Every integrator here is unbiased, so its MSE is its variance,
+and the pair's estimate of it is unbiased too; it holds no reference noise to take out. A
+row then stands for a pair (seed "1+2"), and the brightest pixels are the second image's.
+
 Writes OUT/suite.csv (a row per scene, integrator and seed: seconds, spp, MSE less the reference's
 own noise, the plain MSE, relMSE, both without the worst 0.1% of pixels, and the MSE of the
 reference's brightest 0.3% of pixels and of the rest, which add up to the first), OUT/suite.md (per
 scene the mean MSE of each integrator, its ratio to the first one's, the same ratio of the trimmed MSE, and the geometric means of the
-ratios over the scenes), and OUT/suite.png (MSE per scene and
+ratios over the scenes, the MSE ratios' with their standard error as a factor, ×/÷, from the
+seeds' spread), and OUT/suite.png (MSE per scene and
 integrator, log scale) when matplotlib is installed. Equal time means equal wall-clock
 seconds of rendering on the same machine and threads, training and pre-passes included.
 """
@@ -87,12 +94,16 @@ def main():
     p.add_argument("--max-depth", type=int, default=0,
                    help="every render's and the reference's depth in segments (the learned integrator has no "
                         "depth limit: give one this large to compare unbiased images of the same light)")
+    p.add_argument("--seed-pairs", action="store_true",
+                   help="no reference: each integrator's MSE is its variance over pairs of seeds (an even count)")
     p.add_argument("--zvidpt", default=str(DEFAULT_BIN))
     a = p.parse_args()
     out = Path(a.out)
     (out / "refs").mkdir(parents=True, exist_ok=True)
     integrators = [s.strip() for s in a.integrators.split(";") if s.strip()]
     seeds = [s.strip() for s in a.seeds.split(",") if s.strip()]
+    if a.seed_pairs and (len(seeds) < 2 or len(seeds) % 2):
+        p.error("--seed-pairs takes an even number of seeds")
     only = set(a.only.split(",")) if a.only else None
     rows = []
     scenes = []
@@ -110,6 +121,8 @@ def main():
         depth = ["--max-depth", a.max_depth] if a.max_depth else []
         try:
             for k, ref in enumerate(refs):
+                if a.seed_pairs:
+                    break
                 if depth:
                     # `reference` keeps the scene's depth: a render of that depth instead.
                     if not ref.exists():
@@ -124,6 +137,7 @@ def main():
         scenes.append(name)
         for integ in integrators:
             tag = re.sub(r"[^A-Za-z0-9]+", "-", integ).strip("-")
+            done = []
             for seed in seeds:
                 img = out / name / f"{tag}-{seed}.exr"
                 img.parent.mkdir(parents=True, exist_ok=True)
@@ -131,17 +145,36 @@ def main():
                     line = run([a.zvidpt, "render", f, "--integrator", *integ.split(),
                                 "--time", a.time, "--seed", seed, "--resolution", res, *depth, "-o", img, "--no-png"])
                     m = re.search(r"(\d+) spp.*?, ([\d.]+) s\b", line.splitlines()[-1])
-                    d = run([a.zvidpt, "diff", img, *refs, "--bright", BRIGHT])
+                    if a.seed_pairs:
+                        done.append((seed, img, m))
+                        if len(done) < 2:
+                            continue
+                        (s0, first, m0), (seed, img, m) = done
+                        done = []
+                        d = run([a.zvidpt, "diff", first, img, "--bright", BRIGHT])
+                        # Half the squared difference of two independent renders: one's variance.
+                        half_of = lambda x: float(x) / 2
+                        seed = f"{s0}+{seed}"
+                        seconds = (float(m0.group(2)) + float(m.group(2))) / 2
+                        spp = (int(m0.group(1)) + int(m.group(1))) // 2
+                    else:
+                        d = run([a.zvidpt, "diff", img, *refs, "--bright", BRIGHT])
+                        half_of = float
+                        seconds, spp = float(m.group(2)), int(m.group(1))
                     mse, rel = re.search(r"MSE (\S+)\s+relMSE (\S+)", d).groups()
-                    raw, mse = mse, re.search(r"MSE less it (\S+)", d).group(1)
+                    raw = mse
+                    if not a.seed_pairs:
+                        mse = re.search(r"MSE less it (\S+)", d).group(1)
                     tmse, trel = re.search(r"pixels: MSE (\S+)\s+relMSE ([^\s)]+)", d).groups()
                     top, rest = re.search(r"pixels: MSE (\S+)\s+the rest: MSE (\S+)", d).groups()
-                    rows.append(dict(scene=name, integrator=integ, seed=seed, seconds=m.group(2), spp=m.group(1),
-                                     mse=float(mse), mse_raw=float(raw), relmse=float(rel), mse_trimmed=float(tmse),
-                                     relmse_trimmed=float(trel), mse_bright=float(top), mse_rest=float(rest)))
-                    print(f"{name} | {integ} | seed {seed}: MSE {float(mse):.4g} ({m.group(1)} spp)", flush=True)
+                    rows.append(dict(scene=name, integrator=integ, seed=seed, seconds=f"{seconds:g}", spp=spp,
+                                     mse=half_of(mse), mse_raw=half_of(raw), relmse=half_of(rel),
+                                     mse_trimmed=half_of(tmse), relmse_trimmed=half_of(trel),
+                                     mse_bright=half_of(top), mse_rest=half_of(rest)))
+                    print(f"{name} | {integ} | seed {seed}: MSE {half_of(mse):.4g} ({spp} spp)", flush=True)
                 except RuntimeError as e:
                     print(f"{name} | {integ} | seed {seed}: failed: {e}", file=sys.stderr)
+                    done = []
     with open(out / "suite.csv", "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=["scene", "integrator", "seed", "seconds", "spp", "mse", "mse_raw", "relmse",
                                            "mse_trimmed", "relmse_trimmed", "mse_bright", "mse_rest"])
@@ -169,22 +202,30 @@ def main():
         return f"{mean[(s, i)]:.4g}" + (f" ± {se:.2g}" if se is not None else "")
     base = integrators[0]
     others = integrators[1:]
+    how = (f"seeds {a.seeds}; MSE as each integrator's variance, half the squared difference of its renders "
+           f"in pairs of seeds (no reference: every integrator is unbiased), mean over the pairs ± its standard "
+           f"error" if a.seed_pairs else
+           f"seeds {a.seeds}; MSE against `path` at {a.ref_spp} spp less the reference's own noise (measured "
+           f"from two independent halves), mean over the seeds ± its standard error")
     lines = [f"Equal time {a.time:g} s per render, {a.resolution if not a.downscale else f'film / {a.downscale}'}, "
-             f"seeds {a.seeds}; MSE against `path` at {a.ref_spp} spp less the reference's own noise (measured "
-             f"from two independent halves), mean over the seeds ± its standard error; ratio = {base}'s MSE / "
+             f"{how}; ratio = {base}'s MSE / "
              f"the integrator's (above 1: better than {base}); rest: the same ratio without the reference's "
-             f"brightest {100 * float(BRIGHT):g}% of pixels (lights smaller than a pixel seen directly, whose error is "
+             f"brightest {100 * float(BRIGHT):g}% of pixels ({'the second render' + chr(39) + 's; ' if a.seed_pairs else ''}lights smaller than a pixel seen directly, whose error is "
              f"the pixel footprint's and falls with samples per second alone).", "",
              "| " + " | ".join(["scene"] + [f"{i} MSE" for i in integrators] + [f"{base} / {i}" for i in others]
                                + [f"{base} / {i}, rest" for i in others]) + " |",
              "|---|" + "---|" * (len(integrators) + 2 * len(others))]
     logs = {(i, k): [] for k in ("mse", "rest") for i in others}
+    log_var = {i: [] for i in others}
 
     def ratio(table, s, i, k):
         # Less the reference's noise, an MSE can come out at or below zero: no ratio then.
         if (s, i) in table and (s, base) in table and table[(s, i)] > 0 and table[(s, base)] > 0:
             r = table[(s, base)] / table[(s, i)]
             logs[(i, k)].append(math.log(r))
+            if k == "mse" and spread.get((s, i)) is not None and spread.get((s, base)) is not None:
+                # The log ratio's variance, to first order, from the two means' standard errors.
+                log_var[i].append((spread[(s, base)] / table[(s, base)]) ** 2 + (spread[(s, i)] / table[(s, i)]) ** 2)
             return f"{r:.2f}"
         return "-"
 
@@ -192,7 +233,16 @@ def main():
         cells = [mse_cell(s, i) for i in integrators]
         cells += [ratio(mean, s, i, "mse") for i in others] + [ratio(rest, s, i, "rest") for i in others]
         lines.append(f"| {s} | " + " | ".join(cells) + " |")
-    geo = [f"{math.exp(sum(v) / len(v)):.2f}" if v else "-" for v in logs.values()]
+    def geo_cell(key, v):
+        if not v:
+            return "-"
+        cell = f"{math.exp(sum(v) / len(v)):.2f}"
+        var = log_var.get(key[0]) if key[1] == "mse" else None
+        if var and len(var) == len(v):
+            # The geometric mean's standard error, as a factor (its log's: √Σ var / n).
+            cell += f" ×/÷ {math.exp(math.sqrt(sum(var)) / len(v)):.2f}"
+        return cell
+    geo = [geo_cell(key, v) for key, v in logs.items()]
     if others:
         lines.append("| " + " | ".join(["geometric mean"] + [""] * len(integrators) + geo) + " |")
     (out / "suite.md").write_text("\n".join(lines) + "\n")
