@@ -212,8 +212,8 @@ pub fn projected_variance<A: Accel>(ctx: &RenderContext<A>) -> Vec<f32> {
 /// walk's rays per pass (strata lowered evenly until they fit).
 ///
 /// Judging each pixel by its own rest instead, with a film point at one ray, Bitterli's
-/// coffee at an eighth of its size split 374 pixels seen through the glass 8 × 8 (several
-/// rays a film point there) and rendered half the path tracer's samples per second: MSE
+/// coffee at an eighth of its size splits 374 pixels seen through the glass 8 × 8 (several
+/// rays a film point there) and renders half the path tracer's samples per second: MSE
 /// 1.5× path's at equal time. With this rule it splits them 3 × 3 and is level with path.
 #[must_use]
 pub fn plan(width: u32, stats: &SeenStats, projected: &[f32], cost: f64, max_strata: u8) -> SeenPlan {
