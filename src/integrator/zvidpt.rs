@@ -513,8 +513,14 @@ impl LearnedZvidpt {
                         .map(|x| {
                             let pixel = UVec2::new(x, y);
                             let index = u64::from(y * width + x);
+                            // The pixel's set-up rays are not the walk's cost: a render
+                            // traces them once per pixel, not once per 8 samples (counted,
+                            // they charged the learned walk half a ray per sample: 12% of
+                            // veach-mis's, 11% of coffee's).
+                            let rays = scratch.rays;
                             let reference =
                                 guide.map_or(0.0, |g| self.pixel_reference(ctx, g, pixel, seed, &mut scratch));
+                            scratch.rays = rays;
                             let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
                             for s in 0..PROBE_SPP {
                                 // Keyed apart for the two walks; the film point is the centre.
