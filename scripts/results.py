@@ -44,10 +44,10 @@ ROOT = Path(__file__).resolve().parent.parent
 COMPLETE = ["coffee", "cornell-box", "hair-curl", "veach-bidir", "veach-mis", "volumetric-caustic", "water-caustic"]
 MODES = {
     "quick": dict(ttm_ref=512, runs=2, race_time=10, race_seeds="1,2", race_ref=512, suite_time=8, suite_ref=0,
-                  suite_seeds="1,2,3,4", suite_integrators="path;zvidpt", cycles_time=5, cycles_ref=256,
+                  suite_seed_pairs=True, suite_seeds="1,2,3,4", suite_integrators="path;zvidpt", cycles_time=5, cycles_ref=256,
                   cycles_integrators="path;zvidpt"),
     "full": dict(ttm_ref=8192, runs=2, race_time=20, race_seeds="1,2", race_ref=4096, suite_time=8, suite_ref=16384,
-                 suite_seeds="1,2,3,4,5,6,7,8", suite_integrators="path;zvidpt;jensen --learned-guide on", cycles_time=20,
+                 suite_seed_pairs=False, suite_seeds="1,2,3,4,5,6,7,8", suite_integrators="path;zvidpt;jensen --learned-guide on", cycles_time=20,
                  cycles_ref=8192, cycles_integrators="path;zvidpt;jensen --learned-guide on"),
 }
 
@@ -228,7 +228,7 @@ def suite(a, s, out, log):
     d = out / "suite"
     run([sys.executable, "scripts/suite.py", links, d, "--time", s["suite_time"], "--downscale", "8", "--ref-spp",
          s["suite_ref"], "--seeds", s["suite_seeds"], "--integrators", s["suite_integrators"], "--zvidpt", a.zvidpt,
-         *(["--seed-pairs"] if not s["suite_ref"] else [])], log)
+         *(["--seed-pairs"] if s["suite_seed_pairs"] else [])], log)
     table = (d / "suite.md").read_text().strip()
     rows = [r for r in table.splitlines() if r.startswith("| ") and not r.startswith("| scene")]
     n_int = len(s["suite_integrators"].split(";"))

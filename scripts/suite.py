@@ -153,13 +153,13 @@ def main():
                         done = []
                         d = run([a.zvidpt, "diff", first, img, "--bright", BRIGHT])
                         # Half the squared difference of two independent renders: one's variance.
-                        half_of = lambda x: float(x) / 2
+                        scale = 0.5
                         seed = f"{s0}+{seed}"
                         seconds = (float(m0.group(2)) + float(m.group(2))) / 2
                         spp = (int(m0.group(1)) + int(m.group(1))) // 2
                     else:
                         d = run([a.zvidpt, "diff", img, *refs, "--bright", BRIGHT])
-                        half_of = float
+                        scale = 1.0
                         seconds, spp = float(m.group(2)), int(m.group(1))
                     mse, rel = re.search(r"MSE (\S+)\s+relMSE (\S+)", d).groups()
                     raw = mse
@@ -167,11 +167,11 @@ def main():
                         mse = re.search(r"MSE less it (\S+)", d).group(1)
                     tmse, trel = re.search(r"pixels: MSE (\S+)\s+relMSE ([^\s)]+)", d).groups()
                     top, rest = re.search(r"pixels: MSE (\S+)\s+the rest: MSE (\S+)", d).groups()
+                    figures = dict(mse=mse, mse_raw=raw, relmse=rel, mse_trimmed=tmse, relmse_trimmed=trel,
+                                   mse_bright=top, mse_rest=rest)
                     rows.append(dict(scene=name, integrator=integ, seed=seed, seconds=f"{seconds:g}", spp=spp,
-                                     mse=half_of(mse), mse_raw=half_of(raw), relmse=half_of(rel),
-                                     mse_trimmed=half_of(tmse), relmse_trimmed=half_of(trel),
-                                     mse_bright=half_of(top), mse_rest=half_of(rest)))
-                    print(f"{name} | {integ} | seed {seed}: MSE {half_of(mse):.4g} ({spp} spp)", flush=True)
+                                     **{k: scale * float(v) for k, v in figures.items()}))
+                    print(f"{name} | {integ} | seed {seed}: MSE {rows[-1]['mse']:.4g} ({spp} spp)", flush=True)
                 except RuntimeError as e:
                     print(f"{name} | {integ} | seed {seed}: failed: {e}", file=sys.stderr)
                     done = []
@@ -207,10 +207,11 @@ def main():
            f"error" if a.seed_pairs else
            f"seeds {a.seeds}; MSE against `path` at {a.ref_spp} spp less the reference's own noise (measured "
            f"from two independent halves), mean over the seeds ± its standard error")
+    whose = "the second render's; " if a.seed_pairs else ""
     lines = [f"Equal time {a.time:g} s per render, {a.resolution if not a.downscale else f'film / {a.downscale}'}, "
              f"{how}; ratio = {base}'s MSE / "
              f"the integrator's (above 1: better than {base}); rest: the same ratio without the reference's "
-             f"brightest {100 * float(BRIGHT):g}% of pixels ({'the second render' + chr(39) + 's; ' if a.seed_pairs else ''}lights smaller than a pixel seen directly, whose error is "
+             f"brightest {100 * float(BRIGHT):g}% of pixels ({whose}lights smaller than a pixel seen directly, whose error is "
              f"the pixel footprint's and falls with samples per second alone).", "",
              "| " + " | ".join(["scene"] + [f"{i} MSE" for i in integrators] + [f"{base} / {i}" for i in others]
                                + [f"{base} / {i}, rest" for i in others]) + " |",
