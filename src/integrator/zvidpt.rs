@@ -20,7 +20,7 @@
 //! `--roulette q` uses the paper's `q = L̃1/L̃r` (learned) instead, and `--roulette albedo`
 //! the path tracer's rule: with it, this is PPG-style guided path tracing
 //! (`--integrator jensen --learned-guide on`).
-use super::mixture::{BSDF_SHARE, guides_at, sample_mixture};
+use super::mixture::{guides_at, mixture_density, sample_mixture};
 use super::path::{Mis, PathTracer};
 use super::seen::{SeenPlan, SeenStats, UNSPLIT, plan, projected_variance, split_seen};
 use super::{Integrator, RenderContext, Scratch, direct_light_against, nee_strategy, power_heuristic, sample_bsdf};
@@ -228,6 +228,13 @@ pub const PROBE_PIXELS: u32 = 16_384;
 /// about 0.4 s of a 12-s `cornell-paper` render, where the walk is 12× ahead).
 pub const CLEAR_WIN: f64 = 4.0;
 
+/// Whether a judgement `c` during training stops it: the walk loses by more than its margin
+/// ([`Choice::fell_back`]), or it loses after an earlier judgement that measured it at
+/// `last` and has gained less than [`MIN_GAIN`] since.
+fn stops_training(c: &Choice, last: Option<f64>) -> bool {
+    c.fell_back || last.is_some_and(|l| c.learned > c.path && c.learned > (1.0 - MIN_GAIN) * l)
+}
+
 /// The probe lattice's spacing for a `width × height` image: the smallest, at least 2, with at
 /// most [`PROBE_PIXELS`] pixels.
 pub fn probe_stride(width: u32, height: u32) -> u32 {
@@ -243,6 +250,13 @@ pub fn probe_stride(width: u32, height: u32) -> u32 {
 /// At the first judgement (after [`MIN_TRAINING_SPP`]) the learned walk must lose by this
 /// factor to stop the training; at the end of training, by any.
 pub const EARLY_MARGIN: f64 = 1.5;
+/// A learned walk that loses at a judgement after the first must have lowered its figure by
+/// this fraction since the last, or the training stops there: a guide that a doubling of its
+/// samples leaves as it was will not turn a loss into a win (Bitterli's coffee: its guide,
+/// learned on the few Lambertian surfaces, reads the same 1.2× path's figure after 7 and 63
+/// spp; veach-mis 1.35× and 1.33×; water-caustic, which wins at the end, gained 6% a
+/// doubling).
+pub const MIN_GAIN: f64 = 0.03;
 /// Training samples per pixel the guide needs before it is judged (1 + 2 + 4: the youngest
 /// guides are no measure of the walk).
 pub const MIN_TRAINING_SPP: u32 = 7;
@@ -391,7 +405,12 @@ impl LearnedZvidpt {
                     let mut row = Vec::new();
                     for x in 0..width {
                         let pixel = UVec2::new(x, y);
+                        // The set-up rays are left out of the walk's rays per sample, as in
+                        // the probe: a render traces them once per pixel, a pass once per
+                        // pixel and iteration.
+                        let rays = scratch.rays;
                         let reference = self.pixel_reference(ctx, guide, pixel, seed, &mut scratch);
+                        scratch.rays = rays;
                         let (mut sum, mut sum_sq, mut parts) = ([0.0f64; 3], [0.0f64; 3], [0.0f64; 5]);
                         // Iteration k takes samples 2^k .. 2^(k+1) of the pixel's sequence (an
                         // aligned block: stratified by itself, and with the others).
@@ -570,6 +589,7 @@ struct TrainPass {
     sum: Vec<[f64; 3]>,
     sum_sq: Vec<[f64; 3]>,
     seen: Vec<[f64; 5]>,
+    /// Rays the walks traced, the pixels' set-up rays left out.
     rays: u64,
 }
 
@@ -814,8 +834,11 @@ impl<A: Accel> Walker<'_, A> {
         } else {
             // NEE weighed against the density of the directions sampled below.
             let density = |local: Vec3A, w: Vec3A| {
-                let p = bsdf.pdf(wi, local);
-                if guided { BSDF_SHARE * p + (1.0 - BSDF_SHARE) * guide.pdf(cell, guide_frame.to_local(w)) } else { p }
+                if guided {
+                    mixture_density(bsdf, wi, local, guide.pdf(cell, guide_frame.to_local(w)))
+                } else {
+                    bsdf.pdf(wi, local)
+                }
             };
             direct_light_against(ctx, si, &frame, wi, weigh, rng, scratch, density)
         };
@@ -970,10 +993,18 @@ impl Integrator for LearnedZvidpt {
             seen_stats.add(spp, &pass.seen, pass.rays);
             self.iterations.push(Iteration { spp, seconds: t.elapsed().as_secs_f64() });
             // The first judgement, as soon as the guide has its minimum training: a walk that
-            // loses clearly stops the training there.
-            if self.settings.fallback && self.choice.is_none() && self.training_spp() >= MIN_TRAINING_SPP {
+            // loses clearly stops the training there. A walk that loses by less is judged
+            // again after each iteration until it wins, and stops the training where it
+            // gained less than MIN_GAIN on its last figure.
+            if self.settings.fallback && self.training_spp() >= MIN_TRAINING_SPP {
+                let last = match self.choice {
+                    None => None,
+                    Some(c) if c.learned > c.path => Some(c.learned),
+                    Some(_) => continue,
+                };
                 let c = self.judge(ctx, &path, &guide, seed, &mut path_probe, EARLY_MARGIN);
-                if c.fell_back {
+                if stops_training(&c, last) {
+                    self.choice = Some(Choice { fell_back: true, ..c });
                     self.path = Some(path.clone());
                     break;
                 }
@@ -1093,6 +1124,27 @@ impl Integrator for LearnedZvidpt {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn training_stops_where_a_losing_walk_stalls() {
+        use super::{Choice, MIN_GAIN, stops_training};
+        let c = |learned: f64, fell_back: bool| Choice {
+            path: 1.0,
+            learned,
+            unsplit: learned,
+            split: false,
+            after_spp: 15,
+            fell_back,
+        };
+        // The first judgement stops only beyond its margin.
+        assert!(!stops_training(&c(1.3, false), None));
+        assert!(stops_training(&c(1.6, true), None));
+        // Later, a losing walk must keep gaining.
+        assert!(stops_training(&c(1.22, false), Some(1.226)));
+        assert!(!stops_training(&c(1.2, false), Some(1.2 / (1.0 - 2.0 * MIN_GAIN))));
+        // A walk that wins is never stopped for gaining little.
+        assert!(!stops_training(&c(0.99, false), Some(1.0)));
+    }
+
     use super::{PROBE_PIXELS, defensive_shares, probe_stride};
 
     /// The probe lattice: every second pixel of every second row up to 4 × PROBE_PIXELS

@@ -247,6 +247,20 @@ impl Bsdf {
         }
     }
 
+    /// The probability that [`Bsdf::sample`] takes a plastic's diffuse base (a cosine
+    /// direction) rather than its coat at `wi`: it does so exactly when `u_lobe` is at least
+    /// `1 −` this. `None` for every other BSDF.
+    #[inline]
+    #[must_use]
+    pub fn base_probability(&self, wi: Vec3A) -> Option<f32> {
+        match *self {
+            Bsdf::Plastic { eta, specular_share, coat, .. } if wi.z > 0.0 => {
+                Some(1.0 - plastic::mirror_probability(eta, specular_share, coat.as_ref(), wi.z))
+            }
+            _ => None,
+        }
+    }
+
     /// A scattered direction for `wi`: `u_lobe` chooses a lobe (reflection or refraction),
     /// `u` in `[0,1)²` the direction; `None` when nothing scatters.
     #[must_use]
