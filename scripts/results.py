@@ -18,7 +18,8 @@ Four studies, each the source of one row of the README's headline table:
    --bitterli or $BITTERLI, the collection's root folder). --quick renders no reference: it
    measures each integrator's MSE as its variance over pairs of seeds (`suite.py
    --seed-pairs`; every integrator is unbiased), which needs no reference and carries no
-   reference noise; --full measures it against 16384-spp references.
+   reference noise; --full measures it against 4096-spp references (two halves, whose own
+   noise is taken out).
 4. cornell-paper against Blender's Cycles, path tracing and path guiding, at equal time
    (peers/race_cycles.py; skipped without pip's `bpy`).
 
@@ -46,7 +47,7 @@ MODES = {
     "quick": dict(ttm_ref=512, runs=2, race_time=10, race_seeds="1,2", race_ref=512, suite_time=8, suite_ref=0,
                   suite_seed_pairs=True, suite_seeds="1,2,3,4", suite_integrators="path;zvidpt", cycles_time=5, cycles_ref=256,
                   cycles_integrators="path;zvidpt"),
-    "full": dict(ttm_ref=8192, runs=2, race_time=20, race_seeds="1,2", race_ref=4096, suite_time=8, suite_ref=16384,
+    "full": dict(ttm_ref=8192, runs=2, race_time=20, race_seeds="1,2", race_ref=4096, suite_time=8, suite_ref=4096,
                  suite_seed_pairs=False, suite_seeds="1,2,3,4,5,6,7,8", suite_integrators="path;zvidpt;jensen --learned-guide on", cycles_time=20,
                  cycles_ref=8192, cycles_integrators="path;zvidpt;jensen --learned-guide on"),
 }

@@ -41,13 +41,13 @@ pub fn guide_share(bsdf: &crate::material::Bsdf, wi: Vec3A) -> f32 {
 }
 
 /// The density of [`sample_mixture`]'s non-delta direction `local` (in the BSDF's frame),
-/// `guide_pdf` being the guide's density of it. On a plastic the BSDF's own density less the
-/// cosine directions the guide took over; elsewhere the two densities mixed by their shares.
+/// `bsdf_pdf` and `guide_pdf` being the BSDF's and the guide's densities of it. On a plastic
+/// the BSDF's own density less the cosine directions the guide took over; elsewhere the two
+/// densities mixed by their shares.
 #[inline]
 #[must_use]
-pub fn mixture_density(bsdf: &crate::material::Bsdf, wi: Vec3A, local: Vec3A, guide_pdf: f32) -> f32 {
+pub fn mixture_density(bsdf: &crate::material::Bsdf, wi: Vec3A, local: Vec3A, bsdf_pdf: f32, guide_pdf: f32) -> f32 {
     let share = guide_share(bsdf, wi);
-    let bsdf_pdf = bsdf.pdf(wi, local);
     if bsdf.base_probability(wi).is_some() {
         let cosine = local.z.max(0.0) * core::f32::consts::FRAC_1_PI;
         (bsdf_pdf + share * (guide_pdf - cosine)).max(0.0)
@@ -81,7 +81,7 @@ pub fn sample_mixture(
     let plastic = bsdf.base_probability(wi).is_some();
     let keep = 1.0 - guide_share(bsdf, wi);
     let u = rng.next_f32();
-    let (dir, local) = if u < keep {
+    let (dir, local, bsdf_pdf) = if u < keep {
         let s = bsdf.sample(wi, if plastic { u } else { u / keep }, rng.next_2d())?;
         if s.delta {
             let dir = frame.to_world(s.wo);
@@ -92,15 +92,16 @@ pub fn sample_mixture(
                 delta: true,
             });
         }
-        (frame.to_world(s.wo), s.wo)
+        (frame.to_world(s.wo), s.wo, s.pdf)
     } else {
         let dir = guide_frame.to_world(guide_sample(rng));
-        (dir, frame.to_local(dir))
+        let local = frame.to_local(dir);
+        (dir, local, bsdf.pdf(wi, local))
     };
     if !si.consistent(dir, local.z) {
         return None;
     }
-    let pdf = mixture_density(bsdf, wi, local, guide_pdf(guide_frame.to_local(dir)));
+    let pdf = mixture_density(bsdf, wi, local, bsdf_pdf, guide_pdf(guide_frame.to_local(dir)));
     let weight = bsdf.eval(wi, local) * (local.z.abs() / pdf);
     (pdf > 0.0 && weight.is_finite()).then_some(Scatter { dir, weight, pdf, delta: false })
 }
@@ -188,7 +189,7 @@ mod tests {
             let cosine = wo.z * core::f32::consts::FRAC_1_PI;
             let coat = p - base * cosine;
             let expected = coat + base * (BSDF_SHARE * cosine + (1.0 - BSDF_SHARE) * g);
-            assert!((mixture_density(&bsdf, wi, wo, g) - expected).abs() < 1e-5 * expected.max(1.0));
+            assert!((mixture_density(&bsdf, wi, wo, p, g) - expected).abs() < 1e-5 * expected.max(1.0));
         }
         let metal = Bsdf::conductor(Vec3A::splat(0.2), Vec3A::splat(3.0), Microfacet::ggx(0.3));
         assert_eq!(guide_share(&metal, wi), 1.0 - BSDF_SHARE);

@@ -835,7 +835,7 @@ impl<A: Accel> Walker<'_, A> {
             // NEE weighed against the density of the directions sampled below.
             let density = |local: Vec3A, w: Vec3A| {
                 if guided {
-                    mixture_density(bsdf, wi, local, guide.pdf(cell, guide_frame.to_local(w)))
+                    mixture_density(bsdf, wi, local, bsdf.pdf(wi, local), guide.pdf(cell, guide_frame.to_local(w)))
                 } else {
                     bsdf.pdf(wi, local)
                 }
