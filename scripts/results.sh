@@ -7,7 +7,7 @@
 #   scripts/results.sh --full  [--bitterli COLLECTION] [--out DIR]
 #   (either with --studies cornell-paper,race,suite,cycles: a subset, e.g. --studies race)
 #
-# --quick (about 15 minutes on 2 cores, plus the build) uses shorter references and two
+# --quick (about 13 minutes on 2 cores, plus the build) uses shorter references and two
 # seeds and writes DIR/results.md only, unless --write; --full (about 3 hours) reproduces
 # docs/results.md's settings and rewrites its generated sections, docs/suite.png and the
 # README's headline table. Without --bitterli (or $BITTERLI) the public-scene suite is
