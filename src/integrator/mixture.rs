@@ -30,40 +30,63 @@ pub fn guides_at(bsdf: &crate::material::Bsdf) -> bool {
     }
 }
 
-/// The share of [`sample_mixture`]'s directions drawn from the guide at `wi`: on a plastic,
-/// [`BSDF_SHARE`]'s complement of the diffuse base's share alone (the guide stands for a
-/// Lambertian lobe; the coat keeps every direction the BSDF's sampling gives it, so its
-/// highlights are sampled as the path tracer samples them); elsewhere `1 −` [`BSDF_SHARE`].
-#[inline]
-#[must_use]
-pub fn guide_share(bsdf: &crate::material::Bsdf, wi: Vec3A) -> f32 {
-    bsdf.base_probability(wi).map_or(1.0 - BSDF_SHARE, |base| base * (1.0 - BSDF_SHARE))
+/// How [`sample_mixture`] shares its directions at one vertex (a BSDF and `wi`): worked out
+/// once there and once for NEE's weights, not again for every density.
+#[derive(Clone, Copy, Debug)]
+pub struct Mixture {
+    /// A plastic's probability of sampling its diffuse base ([`Bsdf::base_probability`]);
+    /// `None` for every other BSDF.
+    ///
+    /// [`Bsdf::base_probability`]: crate::material::Bsdf::base_probability
+    base: Option<f32>,
+    /// The share of directions drawn from the guide.
+    share: f32,
 }
 
-/// The density of [`sample_mixture`]'s non-delta direction `local` (in the BSDF's frame),
-/// `bsdf_pdf` and `guide_pdf` being the BSDF's and the guide's densities of it. On a plastic
-/// the BSDF's own density less the cosine directions the guide took over; elsewhere the two
-/// densities mixed by their shares.
-#[inline]
-#[must_use]
-pub fn mixture_density(bsdf: &crate::material::Bsdf, wi: Vec3A, local: Vec3A, bsdf_pdf: f32, guide_pdf: f32) -> f32 {
-    let share = guide_share(bsdf, wi);
-    if bsdf.base_probability(wi).is_some() {
-        let cosine = local.z.max(0.0) * core::f32::consts::FRAC_1_PI;
-        (bsdf_pdf + share * (guide_pdf - cosine)).max(0.0)
-    } else {
-        (1.0 - share) * bsdf_pdf + share * guide_pdf
+impl Mixture {
+    /// The mixture at `bsdf` for `wi`: on a plastic the guide takes `1 −` [`BSDF_SHARE`] of the
+    /// diffuse base's share alone (the guide stands for a Lambertian lobe; the coat keeps every
+    /// direction the BSDF's sampling gives it, so its highlights are sampled as the path
+    /// tracer samples them); elsewhere `1 −` [`BSDF_SHARE`] of all directions.
+    #[inline]
+    #[must_use]
+    pub fn at(bsdf: &crate::material::Bsdf, wi: Vec3A) -> Self {
+        let base = bsdf.base_probability(wi);
+        Self { base, share: base.map_or(1.0 - BSDF_SHARE, |base| base * (1.0 - BSDF_SHARE)) }
+    }
+
+    /// The share of [`sample_mixture`]'s directions drawn from the guide.
+    #[inline]
+    #[must_use]
+    pub fn guide_share(&self) -> f32 {
+        self.share
+    }
+
+    /// The density of [`sample_mixture`]'s non-delta direction `local` (in the BSDF's frame),
+    /// `bsdf_pdf` and `guide_pdf` being the BSDF's and the guide's densities of it. On a
+    /// plastic the BSDF's own density less the cosine directions the guide took over;
+    /// elsewhere the two densities mixed by their shares.
+    #[inline]
+    #[must_use]
+    pub fn density(&self, local: Vec3A, bsdf_pdf: f32, guide_pdf: f32) -> f32 {
+        let share = self.share;
+        if self.base.is_some() {
+            let cosine = local.z.max(0.0) * core::f32::consts::FRAC_1_PI;
+            (bsdf_pdf + share * (guide_pdf - cosine)).max(0.0)
+        } else {
+            (1.0 - share) * bsdf_pdf + share * guide_pdf
+        }
     }
 }
 
 /// A direction at a vertex that is not Lambertian: the BSDF's own sampling on a pure delta
 /// surface; elsewhere a one-sample mixture, the guide (a sampler and its density, both in
-/// local directions of `guide_frame`) with probability [`guide_share`] and the BSDF's own
-/// sampling otherwise, weighted by the mixture's density ([`mixture_density`]). On a plastic the
-/// guide's share comes out of the diffuse base's alone: the lobe variable `u` below `1 −`
-/// [`guide_share`] picks the coat exactly as the BSDF would, so a mirror coat's delta lobe
-/// keeps its own weight. Elsewhere a delta lobe the BSDF picks keeps its own weight over
-/// its share.
+/// local directions of `guide_frame`) with probability [`Mixture::guide_share`] and the
+/// BSDF's own sampling otherwise, weighted by the mixture's density ([`Mixture::density`]).
+/// On a plastic the guide's share comes out of the diffuse base's alone: the lobe variable
+/// `u` below `1 −` that share picks the coat exactly as the BSDF would, so a mirror coat's
+/// delta lobe keeps its own weight. Elsewhere a delta lobe the BSDF picks keeps its own
+/// weight over its share.
 #[inline]
 pub fn sample_mixture(
     si: &SurfaceInteraction,
@@ -78,8 +101,9 @@ pub fn sample_mixture(
     if bsdf.is_delta() {
         return sample_bsdf(si, frame, wi, rng);
     }
-    let plastic = bsdf.base_probability(wi).is_some();
-    let keep = 1.0 - guide_share(bsdf, wi);
+    let mixture = Mixture::at(bsdf, wi);
+    let plastic = mixture.base.is_some();
+    let keep = 1.0 - mixture.share;
     let u = rng.next_f32();
     let (dir, local, bsdf_pdf) = if u < keep {
         let s = bsdf.sample(wi, if plastic { u } else { u / keep }, rng.next_2d())?;
@@ -101,7 +125,7 @@ pub fn sample_mixture(
     if !si.consistent(dir, local.z) {
         return None;
     }
-    let pdf = mixture_density(bsdf, wi, local, bsdf_pdf, guide_pdf(guide_frame.to_local(dir)));
+    let pdf = mixture.density(local, bsdf_pdf, guide_pdf(guide_frame.to_local(dir)));
     let weight = bsdf.eval(wi, local) * (local.z.abs() / pdf);
     (pdf > 0.0 && weight.is_finite()).then_some(Scatter { dir, weight, pdf, delta: false })
 }
@@ -183,15 +207,16 @@ mod tests {
         let wi = Vec3A::new(0.6, 0.0, 0.8);
         let bsdf = Bsdf::plastic_with(Vec3A::splat(0.5), 1.5, Microfacet::ggx(0.2), false);
         let base = bsdf.base_probability(wi).expect("a plastic");
-        assert!((guide_share(&bsdf, wi) - base * (1.0 - BSDF_SHARE)).abs() < 1e-6);
+        let mixture = Mixture::at(&bsdf, wi);
+        assert!((mixture.guide_share() - base * (1.0 - BSDF_SHARE)).abs() < 1e-6);
         for wo in [Vec3A::new(-0.6, 0.0, 0.8), Vec3A::new(0.0, 0.6, 0.8), Vec3A::Z] {
             let (p, g) = (bsdf.pdf(wi, wo), 0.3);
             let cosine = wo.z * core::f32::consts::FRAC_1_PI;
             let coat = p - base * cosine;
             let expected = coat + base * (BSDF_SHARE * cosine + (1.0 - BSDF_SHARE) * g);
-            assert!((mixture_density(&bsdf, wi, wo, p, g) - expected).abs() < 1e-5 * expected.max(1.0));
+            assert!((mixture.density(wo, p, g) - expected).abs() < 1e-5 * expected.max(1.0));
         }
         let metal = Bsdf::conductor(Vec3A::splat(0.2), Vec3A::splat(3.0), Microfacet::ggx(0.3));
-        assert_eq!(guide_share(&metal, wi), 1.0 - BSDF_SHARE);
+        assert_eq!(Mixture::at(&metal, wi).guide_share(), 1.0 - BSDF_SHARE);
     }
 }

@@ -20,7 +20,7 @@
 //! `--roulette q` uses the paper's `q = L̃1/L̃r` (learned) instead, and `--roulette albedo`
 //! the path tracer's rule: with it, this is PPG-style guided path tracing
 //! (`--integrator jensen --learned-guide on`).
-use super::mixture::{guides_at, mixture_density, sample_mixture};
+use super::mixture::{Mixture, guides_at, sample_mixture};
 use super::path::{Mis, PathTracer};
 use super::seen::{SeenPlan, SeenStats, UNSPLIT, plan, projected_variance, split_seen};
 use super::{Integrator, RenderContext, Scratch, direct_light_against, nee_strategy, power_heuristic, sample_bsdf};
@@ -361,21 +361,17 @@ impl LearnedZvidpt {
     }
 
     /// The pixel's reference indirect radiance (summed over channels) for the weight window:
-    /// the mean learned `L̃ind` at the first hits of a few set-up rays.
-    fn pixel_reference<A: Accel>(
-        &self,
-        ctx: &RenderContext<A>,
-        guide: &LearnedGuide,
-        pixel: UVec2,
-        seed: u64,
-        scratch: &mut Scratch,
-    ) -> f32 {
+    /// the mean learned `L̃ind` at the first hits of [`SETUP_RAYS`] set-up rays. Their rays
+    /// are the caller's to count: a render traces them once per pixel, where the training
+    /// passes and the probes, which trace them once per pass, leave them out of the walk's
+    /// rays per sample (counted, they charged the probe's learned walk half a ray per
+    /// sample: 12% of veach-mis's, 11% of coffee's).
+    fn pixel_reference<A: Accel>(&self, ctx: &RenderContext<A>, guide: &LearnedGuide, pixel: UVec2, seed: u64) -> f32 {
         let index = pixel.y as u64 * ctx.scene.camera.width as u64 + pixel.x as u64;
         let mut rng = SampleStream::in_domain(Domain::PixelSetup, seed, index, 1);
         let mut sum = 0.0;
         for _ in 0..SETUP_RAYS {
             let ray = ctx.scene.camera.ray(ctx.scene.camera.film_point(pixel, rng.next_2d()));
-            scratch.rays += 1;
             if let Some(hit) = ctx.accel.intersect(&ray) {
                 let si = ctx.scene.interaction(&ray, &hit);
                 if let Some(e) = guide.estimate(guide.cell(si.p, si.n)) {
@@ -405,12 +401,7 @@ impl LearnedZvidpt {
                     let mut row = Vec::new();
                     for x in 0..width {
                         let pixel = UVec2::new(x, y);
-                        // The set-up rays are left out of the walk's rays per sample, as in
-                        // the probe: a render traces them once per pixel, a pass once per
-                        // pixel and iteration.
-                        let rays = scratch.rays;
-                        let reference = self.pixel_reference(ctx, guide, pixel, seed, &mut scratch);
-                        scratch.rays = rays;
+                        let reference = self.pixel_reference(ctx, guide, pixel, seed);
                         let (mut sum, mut sum_sq, mut parts) = ([0.0f64; 3], [0.0f64; 3], [0.0f64; 5]);
                         // Iteration k takes samples 2^k .. 2^(k+1) of the pixel's sequence (an
                         // aligned block: stratified by itself, and with the others).
@@ -532,14 +523,7 @@ impl LearnedZvidpt {
                         .map(|x| {
                             let pixel = UVec2::new(x, y);
                             let index = u64::from(y * width + x);
-                            // The pixel's set-up rays are not the walk's cost: a render
-                            // traces them once per pixel, not once per 8 samples (counted,
-                            // they charged the learned walk half a ray per sample: 12% of
-                            // veach-mis's, 11% of coffee's).
-                            let rays = scratch.rays;
-                            let reference =
-                                guide.map_or(0.0, |g| self.pixel_reference(ctx, g, pixel, seed, &mut scratch));
-                            scratch.rays = rays;
+                            let reference = guide.map_or(0.0, |g| self.pixel_reference(ctx, g, pixel, seed));
                             let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
                             for s in 0..PROBE_SPP {
                                 // Keyed apart for the two walks; the film point is the centre.
@@ -833,11 +817,12 @@ impl<A: Accel> Walker<'_, A> {
             Vec3A::ZERO
         } else {
             // NEE weighed against the density of the directions sampled below.
+            let mixture = guided.then(|| Mixture::at(bsdf, wi));
             let density = |local: Vec3A, w: Vec3A| {
-                if guided {
-                    mixture_density(bsdf, wi, local, bsdf.pdf(wi, local), guide.pdf(cell, guide_frame.to_local(w)))
-                } else {
-                    bsdf.pdf(wi, local)
+                let p = bsdf.pdf(wi, local);
+                match mixture {
+                    Some(m) => m.density(local, p, guide.pdf(cell, guide_frame.to_local(w))),
+                    None => p,
                 }
             };
             direct_light_against(ctx, si, &frame, wi, weigh, rng, scratch, density)
@@ -1103,7 +1088,8 @@ impl Integrator for LearnedZvidpt {
             return PixelSetup { reference: 0.0, strata };
         }
         let guide = self.guide.as_ref().expect("prepare() builds the guide");
-        PixelSetup { reference: self.pixel_reference(ctx, guide, pixel, seed, scratch), strata }
+        scratch.rays += u64::from(SETUP_RAYS);
+        PixelSetup { reference: self.pixel_reference(ctx, guide, pixel, seed), strata }
     }
 
     fn sample<A: Accel>(
@@ -1124,9 +1110,10 @@ impl Integrator for LearnedZvidpt {
 
 #[cfg(test)]
 mod tests {
+    use super::{Choice, MIN_GAIN, PROBE_PIXELS, defensive_shares, probe_stride, stops_training};
+
     #[test]
     fn training_stops_where_a_losing_walk_stalls() {
-        use super::{Choice, MIN_GAIN, stops_training};
         let c = |learned: f64, fell_back: bool| Choice {
             path: 1.0,
             learned,
@@ -1144,8 +1131,6 @@ mod tests {
         // A walk that wins is never stopped for gaining little.
         assert!(!stops_training(&c(0.99, false), Some(1.0)));
     }
-
-    use super::{PROBE_PIXELS, defensive_shares, probe_stride};
 
     /// The probe lattice: every second pixel of every second row up to 4 × PROBE_PIXELS
     /// pixels, then the densest lattice within PROBE_PIXELS.
