@@ -16,7 +16,7 @@ use common::*;
 use zvidpt::accel::BackendKind;
 use zvidpt::film::Image;
 use zvidpt::integrator::{IntegratorSettings, LearnedSettings, Mis, PathTracer};
-use zvidpt::render::{MEDIA_NOTE, RenderSettings, render_scene};
+use zvidpt::render::{RenderSettings, render_scene};
 use zvidpt::scene::Scene;
 
 const Z_BOUND: f64 = 4.0;
@@ -104,19 +104,61 @@ fn an_absorbing_slab_transmits_exp_minus_sigma_d() {
     assert_means(&img, expected, "absorbing slab");
 }
 
-/// The learned walk hands scenes with media to `path` (and says so); the photon-map
-/// integrators refuse them with one clear error.
+/// The learned integrator renders scenes with media by its guided volumetric walk (and says
+/// so); the photon-map integrators refuse them with one clear error.
 #[test]
-fn only_path_renders_media() {
+fn the_learned_integrator_guides_media_and_the_photon_map_integrators_refuse_them() {
     let scene = parse(&furnace(0.0, 1.0));
     let settings = RenderSettings { spp: Some(4), seed: 1, threads: Some(2), ..RenderSettings::default() };
     let learned = IntegratorSettings::Learned(LearnedSettings::default());
-    let (img, stats, _) = render_scene(&scene, &learned, BackendKind::Bvh, &settings).unwrap();
-    assert_eq!(stats.prepass.as_deref(), Some(MEDIA_NOTE));
-    let (path, _, _) =
-        render_scene(&scene, &IntegratorSettings::Path { mis: Mis::Glossy }, BackendKind::Bvh, &settings).unwrap();
-    assert_eq!(img.pixels, path.pixels, "rendered by path, sample for sample");
+    let (_, stats, _) = render_scene(&scene, &learned, BackendKind::Bvh, &settings).unwrap();
+    let note = stats.prepass.unwrap_or_default();
+    assert!(note.starts_with("participating media: volumetric paths guided"), "{note}");
     let jensen = IntegratorSettings::Jensen(Default::default());
     let err = render_scene(&scene, &jensen, BackendKind::Bvh, &settings).unwrap_err().to_string();
     assert!(err.contains("participating media"), "{err}");
+}
+
+/// A volumetric caustic in miniature: a fog-filled box, a small light under its ceiling, a
+/// glass sphere below the light (vacuum inside) focusing it into the fog and onto the floor.
+fn caustic() -> String {
+    "[camera]\neye = [0.0, 0.0, 0.95]\nlook_at = [0.0, 0.0, 0.0]\nfov_y = 80.0\nwidth = 32\nheight = 24\n\
+     medium = \"fog\"\n\
+     [media.fog]\nsigma_s = [0.6, 0.6, 0.6]\nsigma_a = [0.05, 0.1, 0.2]\ng = 0.2\n\
+     [materials.wall]\ndiffuse = [0.5, 0.5, 0.5]\n\
+     [materials.light]\ndiffuse = [0.0, 0.0, 0.0]\nemission = [400.0, 400.0, 400.0]\n\
+     [materials.glass]\ntype = \"dielectric\"\nexterior_medium = \"fog\"\n\
+     [[shape]]\ntype = \"cube\"\nmaterial = \"wall\"\n\
+     [[shape]]\ntype = \"sphere\"\nmaterial = \"glass\"\ncenter = [0.0, 0.25, 0.0]\nradius = 0.35\nsubdivisions = 4\n\
+     [[shape]]\ntype = \"rectangle\"\nmaterial = \"light\"\nscale = [0.04, 0.04, 1.0]\n\
+     rotate = { axis = [1.0, 0.0, 0.0], angle = 90.0 }\ntranslate = [0.0, 0.97, 0.0]\n"
+        .into()
+}
+
+/// The guided volumetric walk is unbiased: on the miniature volumetric caustic its image
+/// agrees with a long `path` reference block by block (8×8 blocks, each channel) and
+/// image-wide, by a two-sample z-test with both images' variances, Šidák-corrected to a
+/// family-wise false-alarm rate of 1e-3 per image; fixed seeds. A walk weighing every
+/// direction as if the phase function alone had drawn it fails it (image |z| 13.9, block 6.2).
+/// The guide also learns where the light comes from there: the training's probe finds the
+/// guided walk more efficient than `path` (0.28 against 0.58, a function of scene and seed).
+#[test]
+fn the_guided_volumetric_walk_agrees_with_path() {
+    use zvidpt::integrator::GuidedVolume;
+    use zvidpt::stats::family_z_bound;
+    let scene = parse(&caustic());
+    let reference = render_bvh(&scene, &mut PathTracer::default(), 8192, 100);
+    let mut guided = GuidedVolume::new(LearnedSettings { fallback: false, ..LearnedSettings::default() });
+    let img = render_bvh(&scene, &mut guided, 2048, 21);
+    let (zb, n) = max_block_z_both(&img, &reference, 8);
+    let zg = max_block_z_both(&img, &reference, 32).0;
+    let (bound, gbound) = (family_z_bound(n, 1e-3), family_z_bound(3, 1e-3));
+    eprintln!("guided volume: blocks max |z| {zb:.2} (bound {bound:.2}), image {zg:.2} (bound {gbound:.2})");
+    assert!(zb < bound && zg < gbound, "the guided walk disagrees with path: |z| {zb:.2}, {zg:.2}");
+    assert!(guided.guide.as_ref().is_some_and(|g| g.cells() > 1), "the guide never split");
+    let mut judged = GuidedVolume::new(LearnedSettings::default());
+    render_bvh(&scene, &mut judged, 64, 3);
+    let (g, p) = judged.probe.expect("the training probed both walks");
+    eprintln!("probe: guided {g:.3e}, path {p:.3e}");
+    assert!(g < p && !judged.fell_back, "guided {g:.3e} against path {p:.3e}");
 }

@@ -10,6 +10,7 @@ pub mod path;
 pub mod photon_guided;
 pub mod seen;
 mod volume;
+pub mod volume_guided;
 pub mod zvidpt;
 mod zvidpt_paper;
 
@@ -17,6 +18,7 @@ pub use choice::{IntegratorKind, IntegratorSettings};
 pub use jensen::Jensen;
 pub use path::{Mis, PathTracer};
 pub use photon_guided::GuideSettings;
+pub use volume_guided::GuidedVolume;
 pub use zvidpt::{LearnedSettings, LearnedZvidpt, PixelSetup, Roulette};
 pub use zvidpt_paper::{Estimator, MAX_SUBPIXELS, Zvidpt};
 
@@ -72,6 +74,8 @@ pub struct Scratch {
     /// a delta lobe while every scatter so far was delta): what one more film point of the
     /// seen light costs there.
     pub seen_rays: u32,
+    /// The medium vertices of the current guided path (learning data), reused per sample.
+    pub(crate) medium_vertices: Vec<volume::MediumVertex>,
 }
 
 /// A light-transport estimator: one unbiased sample of a pixel's radiance at a time, generic

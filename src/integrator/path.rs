@@ -87,7 +87,7 @@ impl Integrator for PathTracer {
         // inlined here: inlining all three into the tile loop cost the Lambertian one 0.4%.
         let (r, m) = (self.rr_depth, self.mis);
         if ctx.volumetric {
-            return super::volume::trace_volume_path(ctx, pixel, rng, scratch, r, m);
+            return super::volume::trace_volume_path(ctx, pixel, rng, scratch, r, m, Default::default());
         }
         match (self.mis != Mis::All && ctx.lambertian_only, ctx.max_depth != u32::MAX) {
             (true, false) => trace_path::<A, true, false, true>(ctx, pixel, rng, scratch, r, m, sample_lambertian),

@@ -133,7 +133,12 @@ pub fn split_seen<A: Accel>(
         for i in 0..m {
             let u = rng.next_2d();
             let u = Vec2::new(((i as f32 + u.x) * inv).min(0.999_999_94), ((j as f32 + u.y) * inv).min(0.999_999_94));
-            sum += seen_emission(ctx, ctx.scene.camera.film_point(pixel, u), rng, scratch);
+            let film = ctx.scene.camera.film_point(pixel, u);
+            sum += if ctx.volumetric {
+                super::volume::seen_emission_volume(ctx, film, rng, scratch)
+            } else {
+                seen_emission(ctx, film, rng, scratch)
+            };
         }
     }
     sum * (inv * inv)
@@ -178,12 +183,10 @@ pub fn projected_variance<A: Accel>(ctx: &RenderContext<A>) -> Vec<f32> {
         if x0 > x1 || y0 > y1 {
             continue;
         }
-        let to_centre = centre - camera.eye;
-        let distance = to_centre.length();
-        if ctx.accel.occluded(&Ray::new(camera.eye, to_centre / distance), distance * (1.0 - 1e-4)) {
+        let Some(tr) = transmittance_to(ctx, camera.eye, centre) else {
             continue;
-        }
-        let radiance = material.emission.element_sum();
+        };
+        let radiance = (material.emission * tr).element_sum();
         for y in y0 as u32..=y1 as u32 {
             for x in x0 as u32..=x1 as u32 {
                 let c = &mut cover[(y * w + x) as usize];
@@ -199,6 +202,34 @@ pub fn projected_variance<A: Accel>(ctx: &RenderContext<A>) -> Vec<f32> {
             l * l * f * (1.0 - f)
         })
         .collect()
+}
+
+/// What reaches the camera at `eye` from point `to` (the light's own surface excluded): zero
+/// behind a surface (`None`), else the transmittance of the media crossed (1 in vacuum), the
+/// boundaries of media crossed without a bounce.
+fn transmittance_to<A: Accel>(ctx: &RenderContext<A>, eye: Vec3A, to: Vec3A) -> Option<Vec3A> {
+    let scene = ctx.scene;
+    let (mut origin, mut medium, mut tr) = (eye, scene.camera_medium, Vec3A::ONE);
+    for _ in 0..64 {
+        let span = to - origin;
+        let distance = span.length();
+        if distance <= 0.0 {
+            return Some(tr);
+        }
+        let ray = Ray::new(origin, span / distance);
+        let along = |m: Option<u16>, d: f32| m.map_or(Vec3A::ONE, |i| scene.media[usize::from(i)].transmittance(d));
+        let Some(hit) = ctx.accel.intersect(&ray).filter(|h| h.t < distance * (1.0 - 1e-4)) else {
+            return Some(tr * along(medium, distance));
+        };
+        let si = scene.interaction(&ray, &hit);
+        if !si.material.bsdf.is_interface() {
+            return None;
+        }
+        tr *= along(medium, hit.t);
+        medium = scene.medium_interface(si.prim).after(si.ng, ray.dir, medium);
+        origin = si.spawn_ray(ray.dir).origin;
+    }
+    None
 }
 
 /// Each pixel's strata, chosen for the image's efficiency: a split pixel's seen variance

@@ -14,6 +14,7 @@
 use super::{MisAt, RenderContext, Scratch, nee_strategy, path::Mis, power_heuristic, sample_bsdf};
 use crate::accel::Accel;
 use crate::geometry::{Frame, Ray, UVec2, Vec3A, offset_ray_origin};
+use crate::learned_guide::volume::{VolumeDeposits, VolumeGuide};
 use crate::light::{LightSampling, Receiver};
 use crate::sampler::{SampleStream, survival_probability};
 use crate::scene::{Scene, SurfaceInteraction};
@@ -33,6 +34,17 @@ struct Previous {
     mis: MisAt,
 }
 
+/// What a volumetric path does beyond `path`'s (the default: nothing).
+#[derive(Default)]
+pub(crate) struct Guidance<'a> {
+    /// The guide its directions at medium points are drawn from (with the phase function).
+    pub guide: Option<&'a VolumeGuide>,
+    /// Where it deposits what it learned (training).
+    pub deposits: Option<&'a mut VolumeDeposits>,
+    /// Whether it leaves out the pixel's seen light (strata count it, [`super::seen`]).
+    pub seen_apart: bool,
+}
+
 /// One sample of `pixel` by volumetric path tracing (see the module's text).
 #[inline(never)]
 pub(crate) fn trace_volume_path<A: Accel>(
@@ -42,13 +54,21 @@ pub(crate) fn trace_volume_path<A: Accel>(
     scratch: &mut Scratch,
     rr_depth: u32,
     mis: Mis,
+    guidance: Guidance,
 ) -> Vec3A {
+    let Guidance { guide, deposits, seen_apart } = guidance;
     let scene = ctx.scene;
+    scratch.medium_vertices.clear();
+    scratch.seen = Vec3A::ZERO;
+    scratch.seen_rays = 0;
     let film = scene.camera.film_point(pixel, rng.pixel_2d());
     let mut ray = scene.camera.ray(film);
     if ctx.max_depth == 0 {
         return Vec3A::ZERO;
     }
+    // On the camera's delta prefix: no scatter yet but delta ones (light found here is the
+    // pixel's seen light, [`super::seen`]; left out where `seen_apart`, the strata count it).
+    let mut prefix = true;
     let mut medium = scene.camera_medium;
     let (mut radiance, mut throughput) = (Vec3A::ZERO, Vec3A::ONE);
     // `None`: the camera, or a delta lobe: emission found next is counted whole.
@@ -60,6 +80,9 @@ pub(crate) fn trace_volume_path<A: Accel>(
     let mut crossings = 0;
     loop {
         scratch.rays += 1;
+        if prefix {
+            scratch.seen_rays += 1;
+        }
         let hit = ctx.accel.intersect(&ray);
         if let Some(m) = medium.map(|i| &scene.media[usize::from(i)]) {
             let flight = m.sample_flight(hit.map_or(f32::INFINITY, |h| h.t), rng.next_f32(), rng.next_f32());
@@ -75,17 +98,59 @@ pub(crate) fn trace_volume_path<A: Accel>(
                 let wi = -ray.dir;
                 let weigh = if mis == Mis::Off { MisAt::NONE } else { MisAt { surfaces: true, environment: true } };
                 let at = Receiver { x, n: Vec3A::ZERO, strategy: LightSampling::Area };
+                // The learned tree's share of the one-sample mixture with the phase function.
+                let (cell, alpha) = guide.map_or((0, 0.0), |g| {
+                    let c = g.cell(x);
+                    (c, g.mix_at(c))
+                });
+                let mixture = |dir: Vec3A, phase: f32| {
+                    if alpha > 0.0 {
+                        let g = guide.map_or(0.0, |g| g.pdf(cell, dir));
+                        alpha * g + (1.0 - alpha) * phase
+                    } else {
+                        phase
+                    }
+                };
                 radiance += throughput
                     * next_event(ctx, &at, x, medium, weigh, rng, scratch, |dir| {
                         let p = m.phase(wi, dir);
-                        (Vec3A::splat(p), p)
+                        (Vec3A::splat(p), mixture(dir, p))
                     });
                 let albedo = m.sigma_s / m.sigma_t().max(Vec3A::splat(f32::MIN_POSITIVE));
                 if bounce >= rr_depth && !survives(albedo, &mut throughput, rng) {
                     break;
                 }
-                let (dir, pdf) = m.sample_phase(wi, rng.next_2d());
+                let (dir, pdf) = match guide {
+                    None => m.sample_phase(wi, rng.next_2d()),
+                    Some(g) => {
+                        // Which strategy, then the direction: the density is the mixture's
+                        // whichever drew it, and the weight `p/pdf` (1 without a tree).
+                        let pick = rng.next_f32();
+                        let dir = if pick < alpha {
+                            g.sample(cell, rng.next_2d())
+                        } else {
+                            m.sample_phase(wi, rng.next_2d()).0
+                        };
+                        let phase = m.phase(wi, dir);
+                        let pdf = mixture(dir, phase);
+                        if pdf.is_nan() || pdf <= 0.0 {
+                            break;
+                        }
+                        throughput *= phase / pdf;
+                        if deposits.is_some() && scratch.medium_vertices.len() < MAX_RECORDED {
+                            scratch.medium_vertices.push(MediumVertex {
+                                cell: cell as u32,
+                                dir,
+                                weight: phase / pdf,
+                                radiance,
+                                throughput,
+                            });
+                        }
+                        (dir, pdf)
+                    }
+                };
                 previous = Some(Previous { at, pdf, mis: weigh });
+                prefix = false;
                 ray = Ray::new(x, dir);
                 bounce += 1;
                 crossings = 0;
@@ -95,6 +160,12 @@ pub(crate) fn trace_volume_path<A: Accel>(
         let Some(hit) = hit else {
             let env = scene.lights.environment(ray.dir);
             match previous {
+                None if prefix => {
+                    scratch.seen += throughput * env;
+                    if !seen_apart {
+                        radiance += throughput * env;
+                    }
+                }
                 None => radiance += throughput * env,
                 Some(p) if p.mis.environment && env != Vec3A::ZERO => {
                     radiance += throughput * env * power_heuristic(p.pdf, scene.lights.environment_pdf(ray.dir));
@@ -117,6 +188,12 @@ pub(crate) fn trace_volume_path<A: Accel>(
         let emitted = si.emitted();
         if emitted != Vec3A::ZERO {
             match previous {
+                None if prefix => {
+                    scratch.seen += throughput * emitted;
+                    if !seen_apart {
+                        radiance += throughput * emitted;
+                    }
+                }
                 None => radiance += throughput * emitted,
                 Some(p) if p.mis.surfaces => {
                     let p_light = scene.lights.triangle_pdf(&p.at, si.prim, si.p);
@@ -145,11 +222,118 @@ pub(crate) fn trace_volume_path<A: Accel>(
         };
         throughput *= s.weight;
         previous = (!s.delta).then_some(Previous { at, pdf: s.pdf, mis: weigh });
+        prefix &= s.delta;
         medium = interface.after(si.ng, s.dir, medium);
         ray = si.spawn_ray(s.dir);
         bounce += 1;
     }
+    if let (Some(g), Some(d)) = (guide, deposits) {
+        deposit(g, d, &scratch.medium_vertices, radiance);
+    }
     radiance
+}
+
+/// Most medium vertices of one path whose directions are learned from (the rest are still
+/// sampled from the guide, but teach it nothing: learning data only).
+const MAX_RECORDED: usize = 64;
+
+/// A medium vertex whose direction a guided walk sampled, for learning once the path is
+/// complete.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct MediumVertex {
+    cell: u32,
+    dir: Vec3A,
+    /// `p/pdf` of the direction (phase function over the mixture's density).
+    weight: f32,
+    /// The radiance the path had gathered before this direction contributed.
+    radiance: Vec3A,
+    /// The path's throughput with this direction's weight.
+    throughput: Vec3A,
+}
+
+/// Deposits at each recorded vertex the light that arrived along its direction (what the
+/// path gathered after it, over the throughput that direction carried), times its weight
+/// `p/pdf`: an estimate of `Li·p/pdf`.
+fn deposit(guide: &VolumeGuide, d: &mut VolumeDeposits, vertices: &[MediumVertex], radiance: Vec3A) {
+    if !radiance.is_finite() {
+        return;
+    }
+    for v in vertices {
+        let gathered = radiance - v.radiance;
+        let mut li = 0.0;
+        for c in 0..3 {
+            if v.throughput[c] > 0.0 && gathered[c] > 0.0 {
+                li += gathered[c] / v.throughput[c];
+            }
+        }
+        let value = li * v.weight;
+        if value.is_finite() && value > 0.0 {
+            guide.deposit(d, v.cell as usize, v.dir, value);
+        }
+    }
+}
+
+/// The emission along the camera's delta prefix through film point `film` in a scene with
+/// media (the counterpart of [`super::seen::seen_emission`]): each stretch weighed by the
+/// transmittance of the medium it crosses (exact for homogeneous media) instead of by sampled
+/// free flights, the delta scatters' throughput as there.
+pub(crate) fn seen_emission_volume<A: Accel>(
+    ctx: &RenderContext<A>,
+    film: crate::geometry::Vec2,
+    rng: &mut SampleStream,
+    scratch: &mut Scratch,
+) -> Vec3A {
+    let scene = ctx.scene;
+    let mut ray = scene.camera.ray(film);
+    let mut medium = scene.camera_medium;
+    let (mut weight, mut seen) = (Vec3A::ONE, Vec3A::ZERO);
+    let along = |m: Option<u16>, d: f32| m.map_or(Vec3A::ONE, |i| scene.media[usize::from(i)].transmittance(d));
+    let (mut segments, mut crossings) = (1u32, 0u32);
+    loop {
+        scratch.rays += 1;
+        if segments > ctx.max_depth {
+            return seen;
+        }
+        let Some(hit) = ctx.accel.intersect(&ray) else {
+            return seen + weight * along(medium, f32::INFINITY) * scene.lights.environment(ray.dir);
+        };
+        weight *= along(medium, hit.t);
+        if weight == Vec3A::ZERO {
+            return seen;
+        }
+        let si = scene.interaction(&ray, &hit);
+        if si.material.bsdf.is_interface() {
+            crossings += 1;
+            if crossings > MAX_CROSSINGS {
+                return seen;
+            }
+            medium = scene.medium_interface(si.prim).after(si.ng, ray.dir, medium);
+            ray = si.spawn_ray(ray.dir);
+            continue;
+        }
+        crossings = 0;
+        seen += weight * si.emitted();
+        if !si.material.bsdf.has_delta_lobe() {
+            return seen;
+        }
+        let depth = segments - 1;
+        let q = if depth >= 3 { survival_probability(si.material.albedo()) } else { 1.0 };
+        let q = if depth >= 32 { q.min(0.8) } else { q };
+        if q <= 0.0 || rng.next_f32() >= q {
+            return seen;
+        }
+        let frame = si.bsdf_frame();
+        let Some(s) = sample_bsdf(&si, &frame, frame.to_local(si.wo), rng) else {
+            return seen;
+        };
+        if !s.delta {
+            return seen;
+        }
+        weight *= s.weight / q;
+        medium = scene.medium_interface(si.prim).after(si.ng, s.dir, medium);
+        ray = si.spawn_ray(s.dir);
+        segments += 1;
+    }
 }
 
 /// Russian roulette by `albedo`: whether the path goes on (its throughput then divided by

@@ -235,6 +235,42 @@ fn stops_training(c: &Choice, last: Option<f64>) -> bool {
     c.fell_back || last.is_some_and(|l| c.learned > c.path && c.learned > (1.0 - MIN_GAIN) * l)
 }
 
+/// The training budget of a learning integrator: iterations of 1, 2, 4, … spp. With a sample
+/// count, their total stays within `train_spp` (half the final count by default). With a time
+/// budget, iterations run while the next (about twice the last) would end within
+/// [`TRAIN_FRACTION`] of the budget. Either way the rule never looks at the samples' values.
+/// Returns the budget's planned iteration count (for a sample budget) and its time (for a time
+/// budget).
+pub(crate) fn training_budget<A: Accel>(ctx: &RenderContext<A>, train_spp: Option<u32>) -> (Option<u32>, Option<f64>) {
+    let spp_budget = train_spp.or_else(|| ctx.spp.map(|n| (n / 2).max(1)));
+    let time_budget = if spp_budget.is_none() { ctx.time_limit } else { None };
+    // Iterations that fit the sample budget: 1 + 2 + … + 2^(k−1) = 2^k − 1 ≤ budget.
+    let planned = spp_budget.map(|b| (u64::from(b) + 1).ilog2().min(16));
+    (planned, time_budget)
+}
+
+/// Whether training iteration `k` (of `2^k` spp) runs, under [`training_budget`]'s plan, after
+/// the iteration `last`.
+pub(crate) fn iteration_fits<A: Accel>(
+    ctx: &RenderContext<A>,
+    k: u32,
+    planned: Option<u32>,
+    time_budget: Option<f64>,
+    last: Option<&Iteration>,
+) -> bool {
+    match (ctx.training_iterations.or(planned), time_budget) {
+        (Some(n), _) => k < n,
+        (None, Some(t)) => {
+            // An iteration takes about twice its predecessor (first: an estimate).
+            let elapsed = ctx.start.elapsed().as_secs_f64();
+            let next = last.map_or(0.0, |i| 2.0 * i.seconds);
+            k == 0 || elapsed + next <= TRAIN_FRACTION * t
+        }
+        // Neither (a render to a noise target alone): a 64-spp render's training.
+        (None, None) => k < UNBUDGETED_ITERATIONS,
+    }
+}
+
 /// The probe lattice's spacing for a `width × height` image: the smallest, at least 2, with at
 /// most [`PROBE_PIXELS`] pixels.
 pub fn probe_stride(width: u32, height: u32) -> u32 {
@@ -928,16 +964,10 @@ impl Integrator for LearnedZvidpt {
         let seeded = start.elapsed().as_secs_f64();
         drop(map);
         self.iterations.clear();
-        // Training budget: iterations of 1, 2, 4, … spp. With a sample count, their total
-        // stays within `train_spp` (half the final count by default). With a time budget,
-        // iterations run while the next (about twice the last) would end within
-        // TRAIN_FRACTION of the budget. Either way the rule never looks at the samples' values.
-        // Every iteration of at least 2 spp goes into the image by inverse-variance weights
-        // that are independent of each pixel's own values (`passes`): unbiased.
-        let spp_budget = self.settings.train_spp.or_else(|| ctx.spp.map(|n| (n / 2).max(1)));
-        let time_budget = if spp_budget.is_none() { ctx.time_limit } else { None };
-        // Iterations that fit the sample budget: 1 + 2 + … + 2^(k−1) = 2^k − 1 ≤ budget.
-        let planned = spp_budget.map(|b| (u64::from(b) + 1).ilog2().min(16));
+        // Training budget: iterations of 1, 2, 4, … spp ([`training_budget`]). Every
+        // iteration of at least 2 spp goes into the image by inverse-variance weights that
+        // are independent of each pixel's own values (`passes`): unbiased.
+        let (planned, time_budget) = training_budget(ctx, self.settings.train_spp);
         let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
         let mut prior = PriorSamples::new(width, height);
         self.choice = None;
@@ -949,26 +979,8 @@ impl Integrator for LearnedZvidpt {
         let path = PathTracer { mis: self.settings.mis, ..PathTracer::default() };
         for k in 0..16u32 {
             let spp = 1u32 << k;
-            match (ctx.training_iterations.or(planned), time_budget) {
-                (Some(n), _) => {
-                    if k >= n {
-                        break;
-                    }
-                }
-                (None, Some(t)) => {
-                    // An iteration takes about twice its predecessor (first: an estimate).
-                    let elapsed = ctx.start.elapsed().as_secs_f64();
-                    let next = self.iterations.last().map_or(0.0, |i| 2.0 * i.seconds);
-                    if k > 0 && elapsed + next > TRAIN_FRACTION * t {
-                        break;
-                    }
-                }
-                // Neither (a render to a noise target alone): a 64-spp render's training.
-                (None, None) => {
-                    if k >= UNBUDGETED_ITERATIONS {
-                        break;
-                    }
-                }
+            if !iteration_fits(ctx, k, planned, time_budget, self.iterations.last()) {
+                break;
             }
             let t = Instant::now();
             guide.begin_iteration();

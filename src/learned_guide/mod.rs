@@ -20,6 +20,7 @@
 //! worker ([`Deposits`]) and then over workers: integer addition is associative, so what is
 //! learned is bit-identical whatever the thread count and tile order.
 pub mod quadtree;
+pub mod volume;
 
 use crate::geometry::{Frame, Vec2, Vec3A, warp};
 use crate::photon::PhotonMap;
@@ -42,7 +43,7 @@ pub const MAX_CELLS: usize = 1 << 18;
 const MAX_SPATIAL_DEPTH: u32 = 40;
 /// A cell replaces its tree only when it received at least this many directions in the
 /// iteration (fewer give a spiky tree that is worse than the one it has).
-const MIN_TREE_SAMPLES: u64 = 64;
+pub(crate) const MIN_TREE_SAMPLES: u64 = 64;
 /// A cell's learned estimates replace its photon seed once it has this many samples.
 const MIN_SAMPLES: u64 = 16;
 /// Thinnest side of a source box, as a fraction of the scene's extent (a box around a flat
@@ -59,7 +60,7 @@ const MIN_SOURCE_SHARE: f64 = 0.1;
 /// Photons per cell when the first tree is split by photon positions.
 const PHOTONS_PER_CELL: u64 = 200;
 /// Deposits a quadrant needs before it is refined (training; photon seed).
-const MIN_LEAF_SAMPLES: u32 = 32;
+pub(crate) const MIN_LEAF_SAMPLES: u32 = 32;
 const MIN_LEAF_PHOTONS: u32 = 8;
 
 /// A cell's outgoing radiance estimates, per channel.

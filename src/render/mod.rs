@@ -18,7 +18,7 @@ use crate::scene::Scene;
 use crate::{Error, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
-pub use scene::{MEDIA_NOTE, render_scene, render_scene_with_aovs};
+pub use scene::{render_scene, render_scene_with_aovs};
 use std::io::IsTerminal;
 use std::time::Instant;
 

@@ -5,11 +5,8 @@ use super::{RenderSettings, RenderStats, render};
 use crate::Result;
 use crate::accel::{Accel, BackendKind, WithAccel, with_backend_timed};
 use crate::film::Image;
-use crate::integrator::{IntegratorSettings, Jensen, LearnedZvidpt, PathTracer, Zvidpt};
+use crate::integrator::{GuidedVolume, IntegratorSettings, Jensen, LearnedZvidpt, PathTracer, Zvidpt};
 use crate::scene::Scene;
-
-/// What a render of a scene with media by the learned integrator reports it did instead.
-pub const MEDIA_NOTE: &str = "participating media: the learned walk does not model them, so `path` renders this scene";
 
 /// Renders with whichever backend the user chose: the one dynamic choice, at the top.
 struct RenderJob<'a> {
@@ -25,10 +22,10 @@ impl WithAccel for RenderJob<'_> {
     fn run<A: Accel>(self, accel: &A) -> Self::Output {
         let (scene, s) = (self.scene, self.settings);
         let (image, stats) = match self.integrator {
-            // The learned walk does not model media: such scenes are path traced.
-            IntegratorSettings::Learned(_) if scene.volumetric() => {
-                let (image, stats) = render(scene, accel, &mut PathTracer::default(), s)?;
-                (image, RenderStats { prepass: Some(MEDIA_NOTE.into()), ..stats })
+            // The learned surface walk does not model media: such scenes take volumetric
+            // paths guided at medium points.
+            IntegratorSettings::Learned(learned) if scene.volumetric() => {
+                render(scene, accel, &mut GuidedVolume::new(learned.clone()), s)?
             }
             IntegratorSettings::Path { mis } => {
                 render(scene, accel, &mut PathTracer { mis: *mis, ..PathTracer::default() }, s)?
@@ -71,7 +68,7 @@ pub fn render_scene_with_aovs(
 ) -> Result<(Image, RenderStats, &'static str, Option<Aovs>)> {
     if scene.volumetric() && matches!(integrator, IntegratorSettings::Jensen(_) | IntegratorSettings::Paper { .. }) {
         return Err(crate::Error::InvalidOption(format!(
-            "{}: this integrator does not track participating media; `path` renders them (and `zvidpt` hands them to it)",
+            "{}: this integrator does not track participating media; `path` and `zvidpt` render them",
             scene.name
         )));
     }

@@ -1,0 +1,313 @@
+//! `zvidpt` in scenes with participating media: volumetric path tracing ([`super::volume`])
+//! whose directions at medium points come from a one-sample mixture of the phase function and
+//! a guide learned from the render's own paths ([`VolumeGuide`]), trained over iterations of
+//! 1, 2, 4, … spp as the surface walk's guide is (the same budget rules), the iterations' own
+//! samples kept in the image. Surface vertices sample their BSDF as `path` does.
+//!
+//! Unbiased: a direction's weight is the phase function over the density of the mixture that
+//! drew it, and NEE at a medium point weighs its light against that same density. At the end
+//! of training a probe measures variance × rays per sample of the guided walk and of `path`
+//! from the same pixels; where the guided walk loses, `path` renders the rest (the choice
+//! looks only at samples that are not the image's).
+use super::path::PathTracer;
+use super::seen::{SeenPlan, SeenStats, UNSPLIT, plan, projected_variance, split_seen};
+use super::volume::{Guidance, trace_volume_path};
+use super::zvidpt::{
+    Iteration, LearnedSettings, MIN_TRAINING_SPP, PROBE_SPP, iteration_fits, probe_stride, training_budget,
+};
+use super::{Integrator, RenderContext, Scratch};
+use crate::Result;
+use crate::accel::Accel;
+use crate::film::{PriorSamples, mean_variance};
+use crate::geometry::{UVec2, Vec3A};
+use crate::learned_guide::volume::{VolumeDeposits, VolumeGuide};
+use crate::sampler::{Domain, SampleStream};
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Probability of sampling a medium cell's learned tree (where it has one); the rest samples
+/// the phase function (PPG's one-sample mixture uses ½ too).
+pub const VOLUME_GUIDE_MIX: f32 = 0.5;
+
+/// The guided volumetric walk (see the module's text).
+pub struct GuidedVolume {
+    /// The learned integrator's settings (`mis`, `fallback`, `split_samples`, `train_spp`,
+    /// `roulette` for the name).
+    pub settings: LearnedSettings,
+    /// The guide the training learned.
+    pub guide: Option<VolumeGuide>,
+    /// The training iterations, in order.
+    pub iterations: Vec<Iteration>,
+    prior: Option<PriorSamples>,
+    /// The probe's figures (variance × rays per sample): guided walk, path.
+    pub probe: Option<(f64, f64)>,
+    /// Whether `path` renders the rest (the guided walk lost, or learned nothing).
+    pub fell_back: bool,
+    /// Where the seen light is split over the pixel, and how finely (after training).
+    seen: Option<SeenPlan>,
+}
+
+/// What one training iteration returns.
+struct Pass {
+    deposits: VolumeDeposits,
+    sum: Vec<[f64; 3]>,
+    sum_sq: Vec<[f64; 3]>,
+    seen: Vec<[f64; 5]>,
+    rays: u64,
+}
+
+impl GuidedVolume {
+    /// The walk with these settings, before training.
+    #[must_use]
+    pub fn new(settings: LearnedSettings) -> Self {
+        Self { settings, guide: None, iterations: Vec::new(), prior: None, probe: None, fell_back: false, seen: None }
+    }
+
+    /// Training samples per pixel so far (iterations of 2^k spp).
+    fn training_spp(&self) -> u32 {
+        self.iterations.iter().map(|i| i.spp).sum()
+    }
+
+    /// One sample of the guided walk (the path tracer's where `guidance` has no guide).
+    #[inline]
+    fn walk<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        pixel: UVec2,
+        rng: &mut SampleStream,
+        scratch: &mut Scratch,
+        guidance: Guidance,
+    ) -> Vec3A {
+        let path = PathTracer { mis: self.settings.mis, ..PathTracer::default() };
+        trace_volume_path(ctx, pixel, rng, scratch, path.rr_depth, path.mis, guidance)
+    }
+
+    /// One training iteration over the whole image at `spp`: samples `spp .. 2·spp` of each
+    /// pixel's sequence, what they deposited, each pixel's sums, and each pixel's sums of its
+    /// seen light and the rest ([`SeenStats`]).
+    fn train_pass<A: Accel>(&self, ctx: &RenderContext<A>, guide: &VolumeGuide, seed: u64, spp: u32) -> Pass {
+        type Row = Vec<([f64; 3], [f64; 3], [f64; 5])>;
+        let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
+        let (deposits, mut rows) = (0..height)
+            .into_par_iter()
+            .with_min_len(4)
+            .fold(
+                || (guide.deposits(), Vec::<(u32, Row, u64)>::new()),
+                |(mut deposits, mut rows), y| {
+                    let mut scratch = Scratch::default();
+                    let row: Row = (0..width)
+                        .map(|x| {
+                            let (mut sum, mut sum_sq, mut parts) = ([0.0f64; 3], [0.0f64; 3], [0.0f64; 5]);
+                            for s in spp..2 * spp {
+                                let mut rng = SampleStream::new(seed, y * width + x, s);
+                                let guidance =
+                                    Guidance { guide: Some(guide), deposits: Some(&mut deposits), seen_apart: false };
+                                let v = self.walk(ctx, UVec2::new(x, y), &mut rng, &mut scratch, guidance);
+                                let (v, seen) = if v.is_finite() && scratch.seen.is_finite() {
+                                    (v, f64::from(scratch.seen.element_sum()))
+                                } else {
+                                    (Vec3A::ZERO, 0.0)
+                                };
+                                for c in 0..3 {
+                                    sum[c] += f64::from(v[c]);
+                                    sum_sq[c] += f64::from(v[c]) * f64::from(v[c]);
+                                }
+                                let rest = f64::from(v.element_sum()) - seen;
+                                parts[0] += seen;
+                                parts[1] += seen * seen;
+                                parts[2] += rest;
+                                parts[3] += rest * rest;
+                                parts[4] += f64::from(scratch.seen_rays);
+                            }
+                            (sum, sum_sq, parts)
+                        })
+                        .collect();
+                    rows.push((y, row, scratch.rays));
+                    (deposits, rows)
+                },
+            )
+            .reduce(
+                || (VolumeDeposits::default(), Vec::new()),
+                |(a, mut rows), (b, more)| {
+                    rows.extend(more);
+                    (a.merge(b), rows)
+                },
+            );
+        rows.sort_unstable_by_key(|r| r.0);
+        let rays = rows.iter().map(|r| r.2).sum();
+        let (mut sum, mut sum_sq, mut seen) = (Vec::new(), Vec::new(), Vec::new());
+        for (a, b, c) in rows.into_iter().flat_map(|r| r.1) {
+            sum.push(a);
+            sum_sq.push(b);
+            seen.push(c);
+        }
+        Pass { deposits, sum, sum_sq, seen, rays }
+    }
+
+    /// Mean per-sample variance and rays per sample of a walk over the probe lattice
+    /// ([`probe_stride`]), [`PROBE_SPP`] samples per pixel from streams of their own (the same
+    /// for both walks). The seen light is left out: both walks count it alike (split over the
+    /// pixel where that pays), and where a light smaller than a pixel is seen, its hits and
+    /// misses would decide the comparison.
+    fn probe<A: Accel>(&self, ctx: &RenderContext<A>, guide: Option<&VolumeGuide>, seed: u64) -> (f64, f64) {
+        let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
+        let stride = probe_stride(width, height);
+        let (mut rows, rays) = (0..height.div_ceil(stride))
+            .into_par_iter()
+            .map(|i| stride * i)
+            .with_min_len(2)
+            .fold(
+                || (Vec::new(), 0u64),
+                |(mut rows, rays), y| {
+                    let mut scratch = Scratch::default();
+                    let row: Vec<([f64; 3], [f64; 3])> = (0..width)
+                        .step_by(stride as usize)
+                        .map(|x| {
+                            let index = u64::from(y * width + x);
+                            let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
+                            for s in 0..PROBE_SPP {
+                                let mut rng = SampleStream::in_domain(Domain::Probe, seed, index, u64::from(s));
+                                let guidance = Guidance { guide, deposits: None, seen_apart: true };
+                                let v = self.walk(ctx, UVec2::new(x, y), &mut rng, &mut scratch, guidance);
+                                let v = if v.is_finite() { v } else { Vec3A::ZERO };
+                                for c in 0..3 {
+                                    sum[c] += f64::from(v[c]);
+                                    sum_sq[c] += f64::from(v[c]) * f64::from(v[c]);
+                                }
+                            }
+                            (sum, sum_sq)
+                        })
+                        .collect();
+                    rows.push((y, row));
+                    (rows, rays + scratch.rays)
+                },
+            )
+            .reduce(
+                || (Vec::new(), 0),
+                |(mut rows, r), (more, s)| {
+                    rows.extend(more);
+                    (rows, r + s)
+                },
+            );
+        rows.sort_unstable_by_key(|r: &(u32, Vec<_>)| r.0);
+        let (sum, sum_sq): (Vec<_>, Vec<_>) = rows.into_iter().flat_map(|r| r.1).unzip();
+        let samples = sum.len() as f64 * f64::from(PROBE_SPP);
+        (mean_variance(PROBE_SPP, &sum, &sum_sq), rays as f64 / samples.max(1.0))
+    }
+}
+
+impl Integrator for GuidedVolume {
+    /// The pixel's strata per axis for its seen light ([`super::seen`]).
+    type PixelState = u8;
+
+    fn name(&self) -> &'static str {
+        match self.settings.roulette {
+            super::Roulette::Albedo => "jensen-learned",
+            _ => "zvidpt",
+        }
+    }
+
+    fn prepare<A: Accel>(&mut self, ctx: &RenderContext<A>, seed: u64) -> Result<Option<String>> {
+        let mut guide = VolumeGuide::new(ctx.scene.bounds, VOLUME_GUIDE_MIX, self.settings.split_samples);
+        self.iterations.clear();
+        self.probe = None;
+        self.fell_back = false;
+        let (planned, time_budget) = training_budget(ctx, self.settings.train_spp);
+        let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
+        let mut prior = PriorSamples::new(width, height);
+        let mut rays = 0u64;
+        let mut seen_stats = SeenStats::default();
+        self.seen = None;
+        for k in 0..16u32 {
+            if !iteration_fits(ctx, k, planned, time_budget, self.iterations.last()) {
+                break;
+            }
+            let spp = 1u32 << k;
+            let t = Instant::now();
+            guide.begin_iteration();
+            let pass = self.train_pass(ctx, &guide, seed, spp);
+            guide.end_iteration(k, pass.deposits)?;
+            prior.add_pass(spp, &pass.sum, &pass.sum_sq);
+            rays += pass.rays;
+            seen_stats.add(spp, &pass.seen, pass.rays);
+            self.iterations.push(Iteration { spp, seconds: t.elapsed().as_secs_f64() });
+        }
+        // The choice, with the guide the render would sample.
+        if self.settings.fallback && self.training_spp() >= MIN_TRAINING_SPP {
+            let (v_guided, r_guided) = self.probe(ctx, Some(&guide), seed);
+            let (v_path, r_path) = self.probe(ctx, None, seed);
+            let (g, p) = (v_guided * r_guided, v_path * r_path);
+            self.probe = Some((g, p));
+            self.fell_back = g > p;
+        }
+        // Where to split the seen light, as the surface walk decides it.
+        if self.settings.seen_strata > UNSPLIT && !seen_stats.sums.is_empty() {
+            let samples = seen_stats.samples as f64 * seen_stats.sums.len() as f64;
+            let cost = seen_stats.rays as f64 / samples.max(1.0);
+            let projected = projected_variance(ctx);
+            self.seen = Some(plan(width, &seen_stats, &projected, cost, self.settings.seen_strata));
+        }
+        self.prior = (!prior.is_empty()).then_some(prior);
+        let seen = match self.seen.as_ref().map(SeenPlan::split_pixels) {
+            Some((n, m)) if n > 0 => {
+                format!("; seen light split over the pixel in {n} pixels (up to {m}x{m} film points)")
+            }
+            _ => String::new(),
+        };
+        let training: Vec<String> = self.iterations.iter().map(|i| i.spp.to_string()).collect();
+        let samples = f64::from(self.training_spp()) * f64::from(width) * f64::from(height);
+        let probe = match self.probe {
+            Some((g, p)) => format!(
+                "; walk probe ({PROBE_SPP} spp, variance x rays per sample): guided {g:.3e}, path {p:.3e}: {}",
+                if self.fell_back { "path renders the rest" } else { "guided walk kept" }
+            ),
+            None => String::new(),
+        };
+        let line = format!(
+            "participating media: volumetric paths guided at medium points ({} cells, {:.1} MB); training {} spp ({}) in {:.2} s, {:.2} rays per sample, {} of them in the image{probe}{seen}",
+            guide.cells(),
+            guide.bytes() as f64 / 1e6,
+            self.training_spp(),
+            if training.is_empty() { "none".to_string() } else { training.join("+") },
+            self.iterations.iter().map(|i| i.seconds).sum::<f64>(),
+            rays as f64 / samples.max(1.0),
+            self.prior.as_ref().map_or(0, |p| p.spp)
+        );
+        self.guide = Some(guide);
+        Ok(Some(line))
+    }
+
+    fn prior_samples(&self) -> Option<&PriorSamples> {
+        self.prior.as_ref()
+    }
+
+    fn training_iterations(&self) -> Option<u32> {
+        Some(self.iterations.len() as u32)
+    }
+
+    fn bytes_per_pixel(&self) -> u64 {
+        272
+    }
+
+    fn first_sample_index(&self) -> u32 {
+        if self.iterations.is_empty() { 0 } else { 1 << self.iterations.len() }
+    }
+
+    fn setup_pixel<A: Accel>(&self, _: &RenderContext<A>, pixel: UVec2, _: u64, _: &mut Scratch) -> u8 {
+        self.seen.as_ref().map_or(UNSPLIT, |p| p.strata(pixel))
+    }
+
+    fn sample<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        pixel: UVec2,
+        strata: &u8,
+        rng: &mut SampleStream,
+        scratch: &mut Scratch,
+    ) -> Vec3A {
+        let guide = if self.fell_back { None } else { self.guide.as_ref() };
+        let split = *strata > UNSPLIT;
+        let v = self.walk(ctx, pixel, rng, scratch, Guidance { guide, deposits: None, seen_apart: split });
+        if split { v + split_seen(ctx, pixel, *strata, rng, scratch) } else { v }
+    }
+}
