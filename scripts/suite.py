@@ -96,6 +96,10 @@ def main():
                         "depth limit: give one this large to compare unbiased images of the same light)")
     p.add_argument("--seed-pairs", action="store_true",
                    help="no reference: each integrator's MSE is its variance over pairs of seeds (an even count)")
+    p.add_argument("--reference-integrator", default="path",
+                   help="the integrator of the references (any unbiased one; `zvidpt` splits a light smaller "
+                        "than a pixel over its film points, which `path` at 4096 spp does not converge); "
+                        "a reference already in OUT/refs is kept")
     p.add_argument("--zvidpt", default=str(DEFAULT_BIN))
     a = p.parse_args()
     out = Path(a.out)
@@ -123,10 +127,10 @@ def main():
             for k, ref in enumerate(refs):
                 if a.seed_pairs:
                     break
-                if depth:
+                if depth or a.reference_integrator != "path":
                     # `reference` keeps the scene's depth: a render of that depth instead.
                     if not ref.exists():
-                        run([a.zvidpt, "render", f, "--integrator", "path", "--spp", half, "--seed",
+                        run([a.zvidpt, "render", f, "--integrator", *a.reference_integrator.split(), "--spp", half, "--seed",
                              1_000_003 + k, "--resolution", res, *depth, "-o", ref, "--no-png", "-q"])
                 else:
                     run([a.zvidpt, "reference", f, "--spp", half, "--seed", 1_000_003 + k, "--resolution", res,
