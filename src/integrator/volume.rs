@@ -11,7 +11,7 @@
 //! on the two directions' solid-angle densities, as in [`super::path`]: any pair of weights
 //! that sums to one keeps each path counted once, and the transmittance both strategies
 //! share needs no place in them.
-use super::{MisAt, RenderContext, Scratch, nee_strategy, path::Mis, power_heuristic, sample_bsdf};
+use super::{MisAt, RenderContext, Scatter, Scratch, nee_strategy, path::Mis, power_heuristic, sample_bsdf};
 use crate::accel::Accel;
 use crate::geometry::{Frame, Ray, UVec2, Vec3A, offset_ray_origin};
 use crate::learned_guide::volume::{VolumeDeposits, VolumeGuide};
@@ -132,16 +132,20 @@ pub(crate) fn trace_volume_path<A: Accel>(
                             m.sample_phase(wi, rng.next_2d()).0
                         };
                         let phase = m.phase(wi, dir);
-                        let pdf = mixture(dir, phase);
+                        let recording = deposits.is_some() && scratch.medium_vertices.len() < MAX_RECORDED;
+                        let tree = if alpha > 0.0 || recording { g.pdf(cell, dir) } else { 0.0 };
+                        let pdf = alpha * tree + (1.0 - alpha) * phase;
                         if pdf.is_nan() || pdf <= 0.0 {
                             break;
                         }
                         throughput *= phase / pdf;
-                        if deposits.is_some() && scratch.medium_vertices.len() < MAX_RECORDED {
+                        if recording {
                             scratch.medium_vertices.push(MediumVertex {
                                 cell: cell as u32,
                                 dir,
-                                weight: phase / pdf,
+                                base: phase,
+                                tree,
+                                pdf,
                                 radiance,
                                 throughput,
                             });
@@ -211,13 +215,61 @@ pub(crate) fn trace_volume_path<A: Accel>(
         let weigh = mis.at(&si.material);
         let at = Receiver { x: si.p, n: si.n, strategy: nee_strategy(ctx.light_sampling, &si) };
         let interface = scene.medium_interface(si.prim);
+        // A Lambertian surface with a guide: a one-sample mixture of the cell's tree and
+        // cosine sampling, as at medium points.
+        let guided = match (guide, si.material.lambertian()) {
+            (Some(g), Some(rho)) => {
+                let cell = g.surface_cell(si.p, si.n);
+                Some((g, cell, g.mix_at(cell), rho))
+            }
+            _ => None,
+        };
+        let mixture = |dir: Vec3A, bsdf_pdf: f32| match guided {
+            Some((g, cell, alpha, _)) if alpha > 0.0 => alpha * g.pdf(cell, dir) + (1.0 - alpha) * bsdf_pdf,
+            _ => bsdf_pdf,
+        };
         if !si.material.bsdf.is_delta() {
-            radiance += throughput * surface_light(ctx, &si, &frame, wi, &at, weigh, medium, interface, rng, scratch);
+            radiance +=
+                throughput * surface_light(ctx, &si, &frame, wi, &at, weigh, medium, interface, rng, scratch, mixture);
         }
         if bounce >= rr_depth && !survives(albedo, &mut throughput, rng) {
             break;
         }
-        let Some(s) = sample_bsdf(&si, &frame, wi, rng) else {
+        let s = match guided {
+            None => sample_bsdf(&si, &frame, wi, rng),
+            Some((g, cell, alpha, rho)) => {
+                let pick = rng.next_f32();
+                let dir = if pick < alpha {
+                    g.sample(cell, rng.next_2d())
+                } else {
+                    frame.to_world(crate::geometry::warp::cosine_hemisphere(rng.next_2d()))
+                };
+                let local = frame.to_local(dir);
+                let cosine = crate::geometry::warp::cosine_hemisphere_pdf(local.z);
+                let recording = deposits.is_some() && scratch.medium_vertices.len() < MAX_RECORDED;
+                let tree = if alpha > 0.0 || recording { g.pdf(cell, dir) } else { 0.0 };
+                let pdf = alpha * tree + (1.0 - alpha) * cosine;
+                if local.z <= 0.0 || !si.consistent(dir, local.z) || pdf.is_nan() || pdf <= 0.0 {
+                    break;
+                }
+                // f·cos/pdf with f = ρ/π: ρ·(cos/π)/pdf.
+                let weight = rho * (cosine / pdf);
+                if recording {
+                    let (base, throughput) = (cosine, throughput * weight);
+                    scratch.medium_vertices.push(MediumVertex {
+                        cell: cell as u32,
+                        dir,
+                        base,
+                        tree,
+                        pdf,
+                        radiance,
+                        throughput,
+                    });
+                }
+                Some(Scatter { dir, weight, pdf, delta: false })
+            }
+        };
+        let Some(s) = s else {
             break;
         };
         throughput *= s.weight;
@@ -243,8 +295,13 @@ const MAX_RECORDED: usize = 64;
 pub(crate) struct MediumVertex {
     cell: u32,
     dir: Vec3A,
-    /// `p/pdf` of the direction (phase function over the mixture's density).
-    weight: f32,
+    /// The phase function's value, or a Lambertian surface's `cos/π` (its `f·cos` over `ρ`,
+    /// the same for every direction of a cell), along `dir`.
+    base: f32,
+    /// The cell's tree's density of `dir`.
+    tree: f32,
+    /// The density it was drawn with (the mixture's).
+    pdf: f32,
     /// The radiance the path had gathered before this direction contributed.
     radiance: Vec3A,
     /// The path's throughput with this direction's weight.
@@ -252,8 +309,9 @@ pub(crate) struct MediumVertex {
 }
 
 /// Deposits at each recorded vertex the light that arrived along its direction (what the
-/// path gathered after it, over the throughput that direction carried), times its weight
-/// `p/pdf`: an estimate of `Li·p/pdf`.
+/// path gathered after it, over the throughput that direction carried), times `base/pdf`:
+/// an estimate of `Li·p/pdf` (`Li·f·cos/pdf` up to the cell's `ρ`), and its second moments
+/// under each candidate mixture.
 fn deposit(guide: &VolumeGuide, d: &mut VolumeDeposits, vertices: &[MediumVertex], radiance: Vec3A) {
     if !radiance.is_finite() {
         return;
@@ -266,9 +324,11 @@ fn deposit(guide: &VolumeGuide, d: &mut VolumeDeposits, vertices: &[MediumVertex
                 li += gathered[c] / v.throughput[c];
             }
         }
-        let value = li * v.weight;
+        let g = li * v.base;
+        let value = g / v.pdf;
         if value.is_finite() && value > 0.0 {
             guide.deposit(d, v.cell as usize, v.dir, value);
+            guide.deposit_moments(d, v.cell as usize, g, v.pdf, v.tree, v.base);
         }
     }
 }
@@ -349,7 +409,8 @@ fn survives(albedo: Vec3A, throughput: &mut Vec3A, rng: &mut SampleStream) -> bo
 }
 
 /// NEE at surface vertex `si` (BSDF in `frame`, `wi` the local direction to the viewer),
-/// which the arriving ray reached in `medium`.
+/// which the arriving ray reached in `medium`; `mixture(dir, bsdf_pdf)` is the density the
+/// walk samples `dir` with (the BSDF's, or a guided mixture's).
 #[allow(clippy::too_many_arguments)]
 #[inline]
 fn surface_light<A: Accel>(
@@ -363,6 +424,7 @@ fn surface_light<A: Accel>(
     interface: crate::medium::MediumInterface,
     rng: &mut SampleStream,
     scratch: &mut Scratch,
+    mixture: impl FnOnce(Vec3A, f32) -> f32,
 ) -> Vec3A {
     let bsdf = &si.material.bsdf;
     let Some(light) = draw_light(ctx, at, rng) else { return Vec3A::ZERO };
@@ -382,7 +444,7 @@ fn surface_light<A: Accel>(
     let start = interface.after(si.ng, dir, medium);
     let origin = offset_ray_origin(si.p, si.p_err, si.ng, dir);
     let tr = transmittance(ctx.scene, ctx.accel, origin, &light, start, scratch);
-    finish(f, tr, &light, mis, || bsdf.pdf(wi, local))
+    finish(f, tr, &light, mis, || mixture(dir, bsdf.pdf(wi, local)))
 }
 
 /// A light sample for NEE at `at` (three dimensions of the stream, always).

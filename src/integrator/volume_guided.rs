@@ -1,14 +1,20 @@
-//! `zvidpt` in scenes with participating media: volumetric path tracing ([`super::volume`])
-//! whose directions at medium points come from a one-sample mixture of the phase function and
-//! a guide learned from the render's own paths ([`VolumeGuide`]), trained over iterations of
-//! 1, 2, 4, … spp as the surface walk's guide is (the same budget rules), the iterations' own
-//! samples kept in the image. Surface vertices sample their BSDF as `path` does.
+//! `zvidpt` in scenes with participating media: volumetric path tracing (`path`'s, in `volume.rs`)
+//! whose directions at medium points and on Lambertian surfaces come from a one-sample mixture
+//! of the phase function (or cosine sampling) and a guide learned from the render's own paths
+//! ([`VolumeGuide`]), trained over iterations of 1, 2, 4, … spp as the surface walk's guide is
+//! (the same budget rules), the iterations' own samples kept in the image. Other surfaces
+//! sample their BSDF as `path` does. (The surface walk's guide cannot serve here: it models
+//! neither media nor the light that crosses them.)
 //!
-//! Unbiased: a direction's weight is the phase function over the density of the mixture that
-//! drew it, and NEE at a medium point weighs its light against that same density. At the end
-//! of training a probe measures variance × rays per sample of the guided walk and of `path`
-//! from the same pixels; where the guided walk loses, `path` renders the rest (the choice
-//! looks only at samples that are not the image's).
+//! Unbiased: a direction's weight is the phase function (or `f·cos`) over the density of the
+//! mixture that drew it, and NEE weighs its light against that same density. Each cell's
+//! share of its tree is chosen after every iteration by the second moments its directions
+//! would have had under each candidate share (0 where the phase function or cosine sampling
+//! does best). At the end of training a probe measures variance × rays per sample of the
+//! guided walk and of `path` from the same pixels; where the guided walk loses, `path`
+//! renders the rest (the choice looks only at samples that are not the image's). Where a
+//! light smaller than a pixel projects, the seen light is split over the pixel from the first
+//! training pass on.
 use super::path::PathTracer;
 use super::seen::{SeenPlan, SeenStats, UNSPLIT, plan, projected_variance, split_seen};
 use super::volume::{Guidance, trace_volume_path};
@@ -25,8 +31,9 @@ use crate::sampler::{Domain, SampleStream};
 use rayon::prelude::*;
 use std::time::Instant;
 
-/// Probability of sampling a medium cell's learned tree (where it has one); the rest samples
-/// the phase function (PPG's one-sample mixture uses ½ too).
+/// Each cell's first probability of sampling its learned tree (where it has one; then learned
+/// per cell); the rest samples the phase function or the cosine (PPG's one-sample mixture
+/// uses ½ throughout).
 pub const VOLUME_GUIDE_MIX: f32 = 0.5;
 
 /// The guided volumetric walk (see the module's text).
@@ -85,7 +92,14 @@ impl GuidedVolume {
     /// One training iteration over the whole image at `spp`: samples `spp .. 2·spp` of each
     /// pixel's sequence, what they deposited, each pixel's sums, and each pixel's sums of its
     /// seen light and the rest ([`SeenStats`]).
-    fn train_pass<A: Accel>(&self, ctx: &RenderContext<A>, guide: &VolumeGuide, seed: u64, spp: u32) -> Pass {
+    fn train_pass<A: Accel>(
+        &self,
+        ctx: &RenderContext<A>,
+        guide: &VolumeGuide,
+        early: Option<&SeenPlan>,
+        seed: u64,
+        spp: u32,
+    ) -> Pass {
         type Row = Vec<([f64; 3], [f64; 3], [f64; 5])>;
         let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
         let (deposits, mut rows) = (0..height)
@@ -98,21 +112,32 @@ impl GuidedVolume {
                     let row: Row = (0..width)
                         .map(|x| {
                             let (mut sum, mut sum_sq, mut parts) = ([0.0f64; 3], [0.0f64; 3], [0.0f64; 5]);
+                            let pixel = UVec2::new(x, y);
+                            let strata = early.map_or(UNSPLIT, |p| p.strata(pixel));
+                            let apart = strata > UNSPLIT;
                             for s in spp..2 * spp {
                                 let mut rng = SampleStream::new(seed, y * width + x, s);
                                 let guidance =
-                                    Guidance { guide: Some(guide), deposits: Some(&mut deposits), seen_apart: false };
-                                let v = self.walk(ctx, UVec2::new(x, y), &mut rng, &mut scratch, guidance);
-                                let (v, seen) = if v.is_finite() && scratch.seen.is_finite() {
-                                    (v, f64::from(scratch.seen.element_sum()))
+                                    Guidance { guide: Some(guide), deposits: Some(&mut deposits), seen_apart: apart };
+                                let walk = self.walk(ctx, pixel, &mut rng, &mut scratch, guidance);
+                                // The walk's own seen light (left out of `walk` where `apart`),
+                                // for the plan's statistics.
+                                let walk_seen = scratch.seen;
+                                let v = if apart {
+                                    walk + split_seen(ctx, pixel, strata, &mut rng, &mut scratch)
                                 } else {
-                                    (Vec3A::ZERO, 0.0)
+                                    walk
+                                };
+                                let (v, seen, walk) = if v.is_finite() && walk_seen.is_finite() {
+                                    (v, f64::from(walk_seen.element_sum()), walk)
+                                } else {
+                                    (Vec3A::ZERO, 0.0, Vec3A::ZERO)
                                 };
                                 for c in 0..3 {
                                     sum[c] += f64::from(v[c]);
                                     sum_sq[c] += f64::from(v[c]) * f64::from(v[c]);
                                 }
-                                let rest = f64::from(v.element_sum()) - seen;
+                                let rest = f64::from(walk.element_sum()) - if apart { 0.0 } else { seen };
                                 parts[0] += seen;
                                 parts[1] += seen * seen;
                                 parts[2] += rest;
@@ -218,6 +243,18 @@ impl Integrator for GuidedVolume {
         let mut rays = 0u64;
         let mut seen_stats = SeenStats::default();
         self.seen = None;
+        // Pixels where a light smaller than the pixel projects are split from the first
+        // training pass (a plan from the scene's geometry alone, so the training samples stay
+        // unbiased): a training sample that meets such a light unsplit reads about its whole
+        // radiance (2·10⁵ on volumetric-caustic), and a pass that holds one outweighs the
+        // render's own.
+        let projected = projected_variance(ctx);
+        let early = (self.settings.seen_strata > UNSPLIT)
+            .then(|| {
+                let none = SeenStats { samples: 1, sums: vec![[0.0; 5]; projected.len()], rays: 0 };
+                plan(width, &none, &projected, 1.0, self.settings.seen_strata)
+            })
+            .filter(|p| p.split_pixels().0 > 0);
         for k in 0..16u32 {
             if !iteration_fits(ctx, k, planned, time_budget, self.iterations.last()) {
                 break;
@@ -225,7 +262,7 @@ impl Integrator for GuidedVolume {
             let spp = 1u32 << k;
             let t = Instant::now();
             guide.begin_iteration();
-            let pass = self.train_pass(ctx, &guide, seed, spp);
+            let pass = self.train_pass(ctx, &guide, early.as_ref(), seed, spp);
             guide.end_iteration(k, pass.deposits)?;
             prior.add_pass(spp, &pass.sum, &pass.sum_sq);
             rays += pass.rays;
@@ -244,7 +281,6 @@ impl Integrator for GuidedVolume {
         if self.settings.seen_strata > UNSPLIT && !seen_stats.sums.is_empty() {
             let samples = seen_stats.samples as f64 * seen_stats.sums.len() as f64;
             let cost = seen_stats.rays as f64 / samples.max(1.0);
-            let projected = projected_variance(ctx);
             self.seen = Some(plan(width, &seen_stats, &projected, cost, self.settings.seen_strata));
         }
         self.prior = (!prior.is_empty()).then_some(prior);
@@ -264,9 +300,11 @@ impl Integrator for GuidedVolume {
             None => String::new(),
         };
         let line = format!(
-            "participating media: volumetric paths guided at medium points ({} cells, {:.1} MB); training {} spp ({}) in {:.2} s, {:.2} rays per sample, {} of them in the image{probe}{seen}",
+            "participating media: volumetric paths guided ({} cells, {:.1} MB, tree probabilities {:?} per cell of {:?}); training {} spp ({}) in {:.2} s, {:.2} rays per sample, {} of them in the image{probe}{seen}",
             guide.cells(),
             guide.bytes() as f64 / 1e6,
+            guide.mix_histogram(),
+            crate::learned_guide::volume::VOLUME_MIX_CANDIDATES,
             self.training_spp(),
             if training.is_empty() { "none".to_string() } else { training.join("+") },
             self.iterations.iter().map(|i| i.seconds).sum::<f64>(),

@@ -1,9 +1,11 @@
-//! The learned directional density of the `zvidpt` integrator at points inside participating
-//! media: a spatial binary tree over the scene's bounds (a leaf is a *cell*, split in halves of
-//! its longest side where walks scattered often, as Müller et al. 2017 split their SD-tree),
-//! each cell holding a quadtree over the whole sphere of directions (the cylindrical
-//! equal-area map, [`warp::uniform_sphere`]: a uniform tree is uniform sampling) of the
-//! in-scattered light times the phase function, `Li·p`.
+//! The learned directional density of the `zvidpt` integrator in scenes with participating
+//! media: a spatial binary tree over the scene's bounds per kind of point (in a medium; on a
+//! surface, per bucket of its normal, so the sides of a wall never share a cell), a leaf being
+//! a *cell*, split in halves of its longest side where walks scattered often (as Müller et
+//! al. 2017 split their SD-tree). Each cell holds a quadtree over the whole sphere of
+//! directions (the cylindrical equal-area map, [`warp::uniform_sphere`]: a uniform tree is
+//! uniform sampling) of the in-scattered light times the phase function, `Li·p`, or on a
+//! Lambertian surface `Li·cos`, and its probability of being sampled.
 //!
 //! A medium point has no normal, so the surface guide's cells and cosine-warped hemispheres
 //! do not apply there. Where light reaches a medium only through specular surfaces (a
@@ -15,8 +17,18 @@
 use super::quadtree::{Forest, to_fixed};
 use super::{MIN_LEAF_SAMPLES, MIN_TREE_SAMPLES, SPLIT_THRESHOLD};
 use crate::geometry::{Vec2, Vec3A, warp};
+use crate::photon::cache::{BUCKETS, bucket_of};
 use std::f32::consts::PI;
 
+/// The tree-sampling probabilities a cell chooses from by the second moments its directions
+/// would have had under each (as the surface guide's cells do): 0 where the phase function or
+/// the BSDF alone samples best (a cell lit directly, which NEE already covers).
+pub const VOLUME_MIX_CANDIDATES: [f32; 4] = [0.0, 0.25, 0.5, 0.75];
+const CANDIDATES: usize = VOLUME_MIX_CANDIDATES.len();
+/// Directions a cell needs in an iteration before it changes its probability.
+const MIN_MIX_SAMPLES: u64 = 64;
+/// Roots of the spatial tree: medium points, then surface points by normal bucket.
+const ROOTS: usize = 1 + BUCKETS;
 /// Most cells a volume guide may have.
 pub const MAX_VOLUME_CELLS: usize = 1 << 16;
 /// Deepest spatial split (halvings of the scene's bounding cube along one axis).
@@ -42,8 +54,9 @@ pub struct VolumeGuide {
     trees: Forest,
     /// The trees being filled during an iteration: the frozen ones, refined.
     filling: Option<Forest>,
-    /// Probability of sampling a cell's tree where it has one (the rest: the phase function).
-    pub mix: f32,
+    /// Probability of sampling a cell's tree where it has one (the rest: the phase function
+    /// or the BSDF): each cell's, learned from its second moments ([`VOLUME_MIX_CANDIDATES`]).
+    mix: Vec<f32>,
     /// Samples a cell must receive in the first iteration to be split (× √2 per iteration).
     pub split_samples: u64,
 }
@@ -54,6 +67,9 @@ pub struct VolumeGuide {
 pub struct VolumeDeposits {
     acc: Vec<u64>,
     counts: Vec<u64>,
+    /// Per cell, per candidate of [`VOLUME_MIX_CANDIDATES`]: the estimated second moment of a
+    /// direction's weight had the cell sampled its tree with that probability (fixed point).
+    moments: Vec<[u64; CANDIDATES]>,
 }
 
 impl VolumeDeposits {
@@ -69,6 +85,13 @@ impl VolumeDeposits {
         for (x, y) in self.counts.iter_mut().zip(&other.counts) {
             *x = x.wrapping_add(*y);
         }
+        // Saturating sums (a candidate that cannot draw some direction reads u64::MAX): still
+        // the same in any order.
+        for (a, b) in self.moments.iter_mut().zip(&other.moments) {
+            for (x, y) in a.iter_mut().zip(b) {
+                *x = x.saturating_add(*y);
+            }
+        }
         self
     }
 }
@@ -80,8 +103,17 @@ impl VolumeGuide {
     pub fn new(bounds: (Vec3A, f32), mix: f32, split_samples: u64) -> Self {
         let (centre, radius) = bounds;
         let r = Vec3A::splat(radius.max(1e-6) * 1.001);
-        let root = Node { lo: centre - r, hi: centre + r, child: 0, axis: 0, depth: 0, cell: 0 };
-        Self { nodes: vec![root], trees: Forest::flat(1), filling: None, mix, split_samples: split_samples.max(1) }
+        // One root per kind of point: in a medium, then on a surface per normal bucket.
+        let nodes = (0..ROOTS)
+            .map(|k| Node { lo: centre - r, hi: centre + r, child: 0, axis: 0, depth: 0, cell: k as u32 })
+            .collect();
+        Self {
+            nodes,
+            trees: Forest::flat(ROOTS),
+            filling: None,
+            mix: vec![mix; ROOTS],
+            split_samples: split_samples.max(1),
+        }
     }
 
     /// Cells (leaves of the spatial tree).
@@ -90,17 +122,45 @@ impl VolumeGuide {
         self.trees.len()
     }
 
+    /// How many cells sample their tree with each probability of [`VOLUME_MIX_CANDIDATES`]
+    /// (cells that learned no tree left out).
+    #[must_use]
+    pub fn mix_histogram(&self) -> [usize; CANDIDATES] {
+        let mut h = [0; CANDIDATES];
+        for (c, &a) in self.mix.iter().enumerate() {
+            if self.trees.total(c) > 0.0
+                && let Some(k) = VOLUME_MIX_CANDIDATES.iter().position(|&x| x == a)
+            {
+                h[k] += 1;
+            }
+        }
+        h
+    }
+
     /// Bytes held by the trees and the spatial tree.
     #[must_use]
     pub fn bytes(&self) -> usize {
         self.trees.bytes() + self.nodes.len() * std::mem::size_of::<Node>()
     }
 
-    /// The cell holding point `x` (points outside the bounds go to the nearest cell).
+    /// The cell holding medium point `x` (points outside the bounds go to the nearest cell).
     #[inline]
     #[must_use]
     pub fn cell(&self, x: Vec3A) -> usize {
-        let mut node = &self.nodes[0];
+        self.cell_under(0, x)
+    }
+
+    /// The cell holding surface point `x` with shading normal `n` (surfaces facing apart never
+    /// share a cell, nor do surfaces and media).
+    #[inline]
+    #[must_use]
+    pub fn surface_cell(&self, x: Vec3A, n: Vec3A) -> usize {
+        self.cell_under(1 + bucket_of(n), x)
+    }
+
+    #[inline]
+    fn cell_under(&self, root: usize, x: Vec3A) -> usize {
+        let mut node = &self.nodes[root];
         while node.child != 0 {
             let a = usize::from(node.axis);
             let mid = 0.5 * (node.lo[a] + node.hi[a]);
@@ -113,7 +173,7 @@ impl VolumeGuide {
     #[inline]
     #[must_use]
     pub fn mix_at(&self, cell: usize) -> f32 {
-        if self.trees.total(cell) > 0.0 { self.mix } else { 0.0 }
+        if self.trees.total(cell) > 0.0 { self.mix[cell] } else { 0.0 }
     }
 
     /// The learned density of unit direction `w` at `cell`, per steradian.
@@ -145,7 +205,11 @@ impl VolumeGuide {
     #[must_use]
     pub fn deposits(&self) -> VolumeDeposits {
         match &self.filling {
-            Some(f) => VolumeDeposits { acc: vec![0; 8 * f.nodes.len()], counts: vec![0; self.cells()] },
+            Some(f) => VolumeDeposits {
+                acc: vec![0; 8 * f.nodes.len()],
+                counts: vec![0; self.cells()],
+                moments: vec![[0; CANDIDATES]; self.cells()],
+            },
             None => VolumeDeposits::default(),
         }
     }
@@ -166,6 +230,26 @@ impl VolumeGuide {
         }
     }
 
+    /// Records, for the choice of `cell`'s mixture probability, one direction whose integrand
+    /// is `g` (`Li·p` or `Li·f·cos`, channels summed), drawn with density `drawn`, where the
+    /// tree's density is `tree` and the phase function's or the BSDF's `base`: under
+    /// probability `a` its second moment is estimated by `g² / (p_a · drawn)`.
+    #[inline]
+    pub fn deposit_moments(&self, d: &mut VolumeDeposits, cell: usize, g: f32, drawn: f32, tree: f32, base: f32) {
+        if self.filling.is_none() || !(g > 0.0 && drawn > 0.0) || cell >= d.moments.len() {
+            return;
+        }
+        let m = &mut d.moments[cell];
+        for (k, a) in VOLUME_MIX_CANDIDATES.into_iter().enumerate() {
+            let p = f64::from(a * tree + (1.0 - a) * base);
+            if p > 0.0 {
+                m[k] = m[k].saturating_add(to_fixed(f64::from(g) * f64::from(g) / (p * f64::from(drawn))));
+            } else {
+                m[k] = u64::MAX;
+            }
+        }
+    }
+
     /// Ends iteration `k` (0 first): cells that received enough directions sample what they
     /// learned (the others keep their tree), and cells that received more than
     /// `split_samples·√(2^k)` scattering points are halved (each half starting from the
@@ -175,7 +259,7 @@ impl VolumeGuide {
             return Ok(());
         };
         let cells = self.cells();
-        let VolumeDeposits { acc, counts } = deposits;
+        let VolumeDeposits { acc, counts, moments } = deposits;
         if acc.len() != 8 * filling.nodes.len() || counts.len() != cells {
             return Err(crate::Error::InvalidOption("volume deposits of another training iteration".into()));
         }
@@ -186,6 +270,16 @@ impl VolumeGuide {
                 filling.copy_into(t, &mut learned);
             } else {
                 self.trees.copy_into(t, &mut learned);
+            }
+        }
+        // Each cell's probability: the candidate of least estimated second moment, from enough
+        // directions (a candidate that would miss a direction some sample took is out).
+        for (cell, (m, &n)) in moments.iter().zip(&counts).enumerate() {
+            if n >= MIN_MIX_SAMPLES
+                && m.iter().any(|&x| x > 0)
+                && let Some(best) = (0..CANDIDATES).min_by_key(|&k| m[k])
+            {
+                self.mix[cell] = VOLUME_MIX_CANDIDATES[best];
             }
         }
         // Spatial splits; `source[c]`: the learned tree cell `c` starts from.
@@ -212,6 +306,7 @@ impl VolumeGuide {
             let child = self.nodes.len() as u32;
             let new_cell = source.len() as u32;
             source.push(source[node.cell as usize]);
+            self.mix.push(self.mix[node.cell as usize]);
             let depth = node.depth + 1;
             self.nodes.push(Node { lo: node.lo, hi: below_hi, child: 0, axis: 0, depth, cell: node.cell });
             self.nodes.push(Node { lo: above_lo, hi: node.hi, child: 0, axis: 0, depth, cell: new_cell });
@@ -232,6 +327,32 @@ impl VolumeGuide {
 mod tests {
     use super::*;
     use crate::sampler::SampleStream;
+
+    /// A cell's probability follows its second moments: where the integrand is the base
+    /// density itself (base sampling is exact) the cell chooses 0, where it is the tree's
+    /// (a light the phase function rarely finds) the highest candidate.
+    #[test]
+    fn cells_choose_the_mixture_of_least_second_moment() {
+        for (integrand_is_tree, expected) in [(false, 0.0), (true, 0.75)] {
+            let mut guide = VolumeGuide::new((Vec3A::ZERO, 1.0), 0.5, 1 << 40);
+            guide.begin_iteration();
+            let mut d = guide.deposits();
+            // Directions drawn from the 0.5 mixture of a tree (density 8 on an eighth of the
+            // sphere's square, 0 elsewhere) and a uniform base (density 1).
+            let mut rng = SampleStream::new(9, 0, 0);
+            for _ in 0..1000 {
+                let in_tree = rng.next_f32() < 0.5 || rng.next_f32() < 0.125;
+                let (tree, base) = (if in_tree { 8.0 } else { 0.0 }, 1.0);
+                let drawn = 0.5 * tree + 0.5 * base;
+                let g = if integrand_is_tree { tree } else { base };
+                let w = warp::uniform_sphere(rng.next_2d());
+                guide.deposit(&mut d, 0, w, g / drawn);
+                guide.deposit_moments(&mut d, 0, g, drawn, tree, base);
+            }
+            guide.end_iteration(0, d).unwrap();
+            assert_eq!(guide.mix[0], expected, "integrand is the tree's: {integrand_is_tree}");
+        }
+    }
 
     /// A guide trained on directions inside a cone learns to sample them: its density
     /// integrates to 1 over the sphere (midpoint rule), its samples fall in the cone far more
