@@ -44,7 +44,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 COMPLETE = ["coffee", "cornell-box", "hair-curl", "veach-bidir", "veach-mis", "volumetric-caustic", "water-caustic"]
 MODES = {
-    "quick": dict(ttm_ref=512, runs=2, race_time=10, race_seeds="1,2", race_ref=256, suite_time=8, suite_ref=0,
+    "quick": dict(ttm_ref=512, runs=2, race_time=10, race_seeds="1,2", race_ref=256, suite_time=6, suite_ref=0,
                   suite_seed_pairs=True, suite_seeds="1,2,3,4", suite_integrators="path;zvidpt", cycles_time=5, cycles_ref=256,
                   cycles_integrators="path;zvidpt"),
     "full": dict(ttm_ref=8192, runs=2, race_time=20, race_seeds="1,2", race_ref=4096, suite_time=8, suite_ref=4096,
