@@ -7,8 +7,8 @@
 #   scripts/results.sh --full  [--bitterli COLLECTION] [--out DIR]
 #   (either with --studies cornell-paper,race,suite,cycles: a subset, e.g. --studies race)
 #
-# --quick (about 13 minutes on 2 cores, plus the build) uses shorter references and two
-# seeds and writes DIR/results.md only, unless --write; --full (about 3 hours) reproduces
+# --quick (about 11.5 minutes on 2 cores, plus a 3-minute build) uses shorter references, two
+# seeds and a 6-s Bitterli suite, and writes DIR/results.md only, unless --write; --full (about 3 hours) reproduces
 # docs/results.md's settings and rewrites its generated sections, docs/suite.png and the
 # README's headline table. Without --bitterli (or $BITTERLI) the public-scene suite is
 # skipped; without pip's `mitsuba` the race against Mitsuba 3 is, without pip's `bpy` the race
