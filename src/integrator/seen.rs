@@ -12,10 +12,11 @@
 //! render's own samples: here from the training iterations' per-pixel variances of the two
 //! parts and from the emitters' projections onto the film (a light too small for training to
 //! have met is still found).
-use super::{RenderContext, Scratch, sample_bsdf};
+use super::{RenderContext, Scatter, Scratch, sample_bsdf};
 use crate::accel::Accel;
 use crate::geometry::{Ray, UVec2, Vec2, Vec3A};
 use crate::sampler::{SampleStream, survival_probability};
+use crate::scene::SurfaceInteraction;
 
 /// Strata per axis where nothing is split.
 pub const UNSPLIT: u8 = 1;
@@ -94,26 +95,32 @@ pub fn seen_emission<A: Accel>(
         };
         let si = ctx.scene.interaction(&ray, &hit);
         seen += weight * si.emitted();
-        if !si.material.bsdf.has_delta_lobe() {
-            return seen;
-        }
-        let depth = segments - 1;
-        let q = if depth >= 3 { survival_probability(si.material.albedo()) } else { 1.0 };
-        let q = if depth >= 32 { q.min(0.8) } else { q };
-        if q <= 0.0 || rng.next_f32() >= q {
-            return seen;
-        }
-        let frame = si.bsdf_frame();
-        let Some(s) = sample_bsdf(&si, &frame, frame.to_local(si.wo), rng) else {
+        let Some(s) = delta_scatter(&si, segments, rng) else {
             return seen;
         };
-        if !s.delta {
-            return seen;
-        }
-        weight *= s.weight / q;
+        weight *= s.weight;
         ray = si.spawn_ray(s.dir);
         segments += 1;
     }
+}
+
+/// The camera's delta prefix continued at `si`, its `segments`-th hit: a delta lobe of its
+/// BSDF, with roulette by albedo after 3 bounces (as the walks) folded into the weight;
+/// `None` where the prefix ends (no delta lobe there, roulette, or a non-delta lobe drawn).
+#[inline]
+pub(crate) fn delta_scatter(si: &SurfaceInteraction, segments: u32, rng: &mut SampleStream) -> Option<Scatter> {
+    if !si.material.bsdf.has_delta_lobe() {
+        return None;
+    }
+    let depth = segments - 1;
+    let q = if depth >= 3 { survival_probability(si.material.albedo()) } else { 1.0 };
+    let q = if depth >= 32 { q.min(0.8) } else { q };
+    if q <= 0.0 || rng.next_f32() >= q {
+        return None;
+    }
+    let frame = si.bsdf_frame();
+    let s = sample_bsdf(si, &frame, frame.to_local(si.wo), rng).filter(|s| s.delta)?;
+    Some(Scatter { weight: s.weight / q, ..s })
 }
 
 /// The seen term of `pixel` from `m × m` stratified film points (jittered in each stratum of

@@ -373,23 +373,10 @@ pub(crate) fn seen_emission_volume<A: Accel>(
         }
         crossings = 0;
         seen += weight * si.emitted();
-        if !si.material.bsdf.has_delta_lobe() {
-            return seen;
-        }
-        let depth = segments - 1;
-        let q = if depth >= 3 { survival_probability(si.material.albedo()) } else { 1.0 };
-        let q = if depth >= 32 { q.min(0.8) } else { q };
-        if q <= 0.0 || rng.next_f32() >= q {
-            return seen;
-        }
-        let frame = si.bsdf_frame();
-        let Some(s) = sample_bsdf(&si, &frame, frame.to_local(si.wo), rng) else {
+        let Some(s) = super::seen::delta_scatter(&si, segments, rng) else {
             return seen;
         };
-        if !s.delta {
-            return seen;
-        }
-        weight *= s.weight / q;
+        weight *= s.weight;
         medium = scene.medium_interface(si.prim).after(si.ng, s.dir, medium);
         ray = si.spawn_ray(s.dir);
         segments += 1;

@@ -19,12 +19,13 @@ use super::path::PathTracer;
 use super::seen::{SeenPlan, SeenStats, UNSPLIT, plan, projected_variance, split_seen};
 use super::volume::{Guidance, trace_volume_path};
 use super::zvidpt::{
-    Iteration, LearnedSettings, MIN_TRAINING_SPP, PROBE_SPP, iteration_fits, probe_stride, training_budget,
+    Iteration, LearnedSettings, MIN_TRAINING_SPP, PROBE_SPP, PixelSums, add_sample, add_training_sample, gather_rows,
+    iteration_fits, probe_lattice, training_budget,
 };
 use super::{Integrator, RenderContext, Scratch};
 use crate::Result;
 use crate::accel::Accel;
-use crate::film::{PriorSamples, mean_variance};
+use crate::film::PriorSamples;
 use crate::geometry::{UVec2, Vec3A};
 use crate::learned_guide::volume::{VolumeDeposits, VolumeGuide};
 use crate::sampler::{Domain, SampleStream};
@@ -100,18 +101,17 @@ impl GuidedVolume {
         seed: u64,
         spp: u32,
     ) -> Pass {
-        type Row = Vec<([f64; 3], [f64; 3], [f64; 5])>;
         let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
         let (deposits, mut rows) = (0..height)
             .into_par_iter()
             .with_min_len(4)
             .fold(
-                || (guide.deposits(), Vec::<(u32, Row, u64)>::new()),
+                || (guide.deposits(), Vec::<(u32, Vec<PixelSums>, u64)>::new()),
                 |(mut deposits, mut rows), y| {
                     let mut scratch = Scratch::default();
-                    let row: Row = (0..width)
+                    let row: Vec<PixelSums> = (0..width)
                         .map(|x| {
-                            let (mut sum, mut sum_sq, mut parts) = ([0.0f64; 3], [0.0f64; 3], [0.0f64; 5]);
+                            let mut sums = PixelSums::default();
                             let pixel = UVec2::new(x, y);
                             let strata = early.map_or(UNSPLIT, |p| p.strata(pixel));
                             let apart = strata > UNSPLIT;
@@ -133,18 +133,10 @@ impl GuidedVolume {
                                 } else {
                                     (Vec3A::ZERO, 0.0, Vec3A::ZERO)
                                 };
-                                for c in 0..3 {
-                                    sum[c] += f64::from(v[c]);
-                                    sum_sq[c] += f64::from(v[c]) * f64::from(v[c]);
-                                }
                                 let rest = f64::from(walk.element_sum()) - if apart { 0.0 } else { seen };
-                                parts[0] += seen;
-                                parts[1] += seen * seen;
-                                parts[2] += rest;
-                                parts[3] += rest * rest;
-                                parts[4] += f64::from(scratch.seen_rays);
+                                add_training_sample(&mut sums, v, seen, rest, scratch.seen_rays);
                             }
-                            (sum, sum_sq, parts)
+                            sums
                         })
                         .collect();
                     rows.push((y, row, scratch.rays));
@@ -159,65 +151,28 @@ impl GuidedVolume {
                 },
             );
         rows.sort_unstable_by_key(|r| r.0);
-        let rays = rows.iter().map(|r| r.2).sum();
-        let (mut sum, mut sum_sq, mut seen) = (Vec::new(), Vec::new(), Vec::new());
-        for (a, b, c) in rows.into_iter().flat_map(|r| r.1) {
-            sum.push(a);
-            sum_sq.push(b);
-            seen.push(c);
-        }
+        let (sum, sum_sq, seen, rays) = gather_rows(rows);
         Pass { deposits, sum, sum_sq, seen, rays }
     }
 
     /// Mean per-sample variance and rays per sample of a walk over the probe lattice
-    /// ([`probe_stride`]), [`PROBE_SPP`] samples per pixel from streams of their own (the same
+    /// ([`probe_lattice`]), [`PROBE_SPP`] samples per pixel from streams of their own (the same
     /// for both walks). The seen light is left out: both walks count it alike (split over the
     /// pixel where that pays), and where a light smaller than a pixel is seen, its hits and
     /// misses would decide the comparison.
     fn probe<A: Accel>(&self, ctx: &RenderContext<A>, guide: Option<&VolumeGuide>, seed: u64) -> (f64, f64) {
-        let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
-        let stride = probe_stride(width, height);
-        let (mut rows, rays) = (0..height.div_ceil(stride))
-            .into_par_iter()
-            .map(|i| stride * i)
-            .with_min_len(2)
-            .fold(
-                || (Vec::new(), 0u64),
-                |(mut rows, rays), y| {
-                    let mut scratch = Scratch::default();
-                    let row: Vec<([f64; 3], [f64; 3])> = (0..width)
-                        .step_by(stride as usize)
-                        .map(|x| {
-                            let index = u64::from(y * width + x);
-                            let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
-                            for s in 0..PROBE_SPP {
-                                let mut rng = SampleStream::in_domain(Domain::Probe, seed, index, u64::from(s));
-                                let guidance = Guidance { guide, deposits: None, seen_apart: true };
-                                let v = self.walk(ctx, UVec2::new(x, y), &mut rng, &mut scratch, guidance);
-                                let v = if v.is_finite() { v } else { Vec3A::ZERO };
-                                for c in 0..3 {
-                                    sum[c] += f64::from(v[c]);
-                                    sum_sq[c] += f64::from(v[c]) * f64::from(v[c]);
-                                }
-                            }
-                            (sum, sum_sq)
-                        })
-                        .collect();
-                    rows.push((y, row));
-                    (rows, rays + scratch.rays)
-                },
-            )
-            .reduce(
-                || (Vec::new(), 0),
-                |(mut rows, r), (more, s)| {
-                    rows.extend(more);
-                    (rows, r + s)
-                },
-            );
-        rows.sort_unstable_by_key(|r: &(u32, Vec<_>)| r.0);
-        let (sum, sum_sq): (Vec<_>, Vec<_>) = rows.into_iter().flat_map(|r| r.1).unzip();
-        let samples = sum.len() as f64 * f64::from(PROBE_SPP);
-        (mean_variance(PROBE_SPP, &sum, &sum_sq), rays as f64 / samples.max(1.0))
+        let width = ctx.scene.camera.width;
+        probe_lattice(ctx, |pixel, scratch| {
+            let index = u64::from(pixel.y * width + pixel.x);
+            let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
+            for s in 0..PROBE_SPP {
+                let mut rng = SampleStream::in_domain(Domain::Probe, seed, index, u64::from(s));
+                let guidance = Guidance { guide, deposits: None, seen_apart: true };
+                let v = self.walk(ctx, pixel, &mut rng, scratch, guidance);
+                add_sample(&mut sum, &mut sum_sq, if v.is_finite() { v } else { Vec3A::ZERO });
+            }
+            (sum, sum_sq)
+        })
     }
 }
 

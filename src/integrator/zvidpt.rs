@@ -422,7 +422,6 @@ impl LearnedZvidpt {
     /// deposited, each pixel's sums and sums of squares (row-major), and each pixel's sums of
     /// its seen light and the rest ([`SeenStats`]) with the rays traced.
     fn train_pass<A: Accel>(&self, ctx: &RenderContext<A>, guide: &LearnedGuide, seed: u64, spp: u32) -> TrainPass {
-        type Row = Vec<([f64; 3], [f64; 3], [f64; 5])>;
         let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
         let walker = Walker { zvidpt: self, ctx, guide };
         // Each worker deposits into its own accumulators, summed afterwards (integer sums:
@@ -431,14 +430,14 @@ impl LearnedZvidpt {
             .into_par_iter()
             .with_min_len(4)
             .fold(
-                || (guide.deposits(), Vec::<(u32, Row, u64)>::new()),
+                || (guide.deposits(), Vec::<(u32, Vec<PixelSums>, u64)>::new()),
                 |(mut deposits, mut rows), y| {
                     let mut scratch = Scratch::default();
                     let mut row = Vec::new();
                     for x in 0..width {
                         let pixel = UVec2::new(x, y);
                         let reference = self.pixel_reference(ctx, guide, pixel, seed);
-                        let (mut sum, mut sum_sq, mut parts) = ([0.0f64; 3], [0.0f64; 3], [0.0f64; 5]);
+                        let mut sums = PixelSums::default();
                         // Iteration k takes samples 2^k .. 2^(k+1) of the pixel's sequence (an
                         // aligned block: stratified by itself, and with the others).
                         for s in spp..2 * spp {
@@ -457,18 +456,10 @@ impl LearnedZvidpt {
                             } else {
                                 (Vec3A::ZERO, 0.0)
                             };
-                            for c in 0..3 {
-                                sum[c] += f64::from(v[c]);
-                                sum_sq[c] += f64::from(v[c]) * f64::from(v[c]);
-                            }
                             let rest = f64::from(v.element_sum()) - seen;
-                            parts[0] += seen;
-                            parts[1] += seen * seen;
-                            parts[2] += rest;
-                            parts[3] += rest * rest;
-                            parts[4] += f64::from(scratch.seen_rays);
+                            add_training_sample(&mut sums, v, seen, rest, scratch.seen_rays);
                         }
-                        row.push((sum, sum_sq, parts));
+                        row.push(sums);
                     }
                     rows.push((y, row, scratch.rays));
                     (deposits, rows)
@@ -482,13 +473,7 @@ impl LearnedZvidpt {
                 },
             );
         rows.sort_unstable_by_key(|r| r.0);
-        let rays = rows.iter().map(|r| r.2).sum();
-        let (mut sum, mut sum_sq, mut seen) = (Vec::new(), Vec::new(), Vec::new());
-        for (a, b, c) in rows.into_iter().flat_map(|r| r.1) {
-            sum.push(a);
-            sum_sq.push(b);
-            seen.push(c);
-        }
+        let (sum, sum_sq, seen, rays) = gather_rows(rows);
         TrainPass { deposits, sum, sum_sq, seen, rays }
     }
 
@@ -543,57 +528,104 @@ impl LearnedZvidpt {
         guide: Option<&LearnedGuide>,
         seed: u64,
     ) -> (f64, f64) {
-        let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
-        let stride = probe_stride(width, height);
+        let width = ctx.scene.camera.width;
         let walker = guide.map(|guide| Walker { zvidpt: self, ctx, guide });
-        let (mut rows, rays) = (0..height.div_ceil(stride))
-            .into_par_iter()
-            .map(|i| stride * i)
-            .with_min_len(2)
-            .fold(
-                || (Vec::new(), 0u64),
-                |(mut rows, rays), y| {
-                    let mut scratch = Scratch::default();
-                    let row: Vec<([f64; 3], [f64; 3])> = (0..width)
-                        .step_by(stride as usize)
-                        .map(|x| {
-                            let pixel = UVec2::new(x, y);
-                            let index = u64::from(y * width + x);
-                            let reference = guide.map_or(0.0, |g| self.pixel_reference(ctx, g, pixel, seed));
-                            let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
-                            for s in 0..PROBE_SPP {
-                                // Keyed apart for the two walks; the film point is the centre.
-                                let key = 2 * u64::from(s) + u64::from(guide.is_some());
-                                let mut rng = SampleStream::in_domain(Domain::Probe, seed, index, key);
-                                let v = match &walker {
-                                    Some(w) => w.camera_sample(pixel, reference, UNSPLIT, &mut rng, &mut scratch, None),
-                                    None => path.sample(ctx, pixel, &(), &mut rng, &mut scratch),
-                                };
-                                let v = if v.is_finite() { v } else { Vec3A::ZERO };
-                                for c in 0..3 {
-                                    sum[c] += f64::from(v[c]);
-                                    sum_sq[c] += f64::from(v[c]) * f64::from(v[c]);
-                                }
-                            }
-                            (sum, sum_sq)
-                        })
-                        .collect();
-                    rows.push((y, row));
-                    (rows, rays + scratch.rays)
-                },
-            )
-            .reduce(
-                || (Vec::new(), 0),
-                |(mut rows, r), (more, s)| {
-                    rows.extend(more);
-                    (rows, r + s)
-                },
-            );
-        rows.sort_unstable_by_key(|r: &(u32, Vec<_>)| r.0);
-        let (sum, sum_sq): (Vec<_>, Vec<_>) = rows.into_iter().flat_map(|r| r.1).unzip();
-        let samples = sum.len() as f64 * f64::from(PROBE_SPP);
-        (mean_variance(PROBE_SPP, &sum, &sum_sq), rays as f64 / samples.max(1.0))
+        probe_lattice(ctx, |pixel, scratch| {
+            let index = u64::from(pixel.y * width + pixel.x);
+            let reference = guide.map_or(0.0, |g| self.pixel_reference(ctx, g, pixel, seed));
+            let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
+            for s in 0..PROBE_SPP {
+                // Keyed apart for the two walks; the film point is the centre.
+                let key = 2 * u64::from(s) + u64::from(guide.is_some());
+                let mut rng = SampleStream::in_domain(Domain::Probe, seed, index, key);
+                let v = match &walker {
+                    Some(w) => w.camera_sample(pixel, reference, UNSPLIT, &mut rng, scratch, None),
+                    None => path.sample(ctx, pixel, &(), &mut rng, scratch),
+                };
+                add_sample(&mut sum, &mut sum_sq, if v.is_finite() { v } else { Vec3A::ZERO });
+            }
+            (sum, sum_sq)
+        })
     }
+}
+
+/// One pixel's sums over a training pass: of its samples per channel, of their squares, and
+/// the parts of [`SeenStats`] (seen, seen², rest, rest², rays of the delta prefix).
+pub(crate) type PixelSums = ([f64; 3], [f64; 3], [f64; 5]);
+
+/// Adds training sample `v`, of seen light `seen` and rest `rest` (channels summed) after
+/// `seen_rays` rays of its delta prefix, to its pixel's sums.
+#[inline]
+pub(crate) fn add_training_sample(p: &mut PixelSums, v: Vec3A, seen: f64, rest: f64, seen_rays: u32) {
+    add_sample(&mut p.0, &mut p.1, v);
+    let parts = &mut p.2;
+    parts[0] += seen;
+    parts[1] += seen * seen;
+    parts[2] += rest;
+    parts[3] += rest * rest;
+    parts[4] += f64::from(seen_rays);
+}
+
+/// A training pass's rows (row index, its pixels' sums, its rays), sorted by row: every
+/// pixel's sums, sums of squares and seen parts in row-major order, and the rays in all.
+pub(crate) fn gather_rows(rows: Vec<(u32, Vec<PixelSums>, u64)>) -> TrainingSums {
+    let rays = rows.iter().map(|r| r.2).sum();
+    let (mut sum, mut sum_sq, mut seen) = (Vec::new(), Vec::new(), Vec::new());
+    for (a, b, c) in rows.into_iter().flat_map(|r| r.1) {
+        sum.push(a);
+        sum_sq.push(b);
+        seen.push(c);
+    }
+    (sum, sum_sq, seen, rays)
+}
+
+/// What [`gather_rows`] returns.
+pub(crate) type TrainingSums = (Vec<[f64; 3]>, Vec<[f64; 3]>, Vec<[f64; 5]>, u64);
+
+/// Adds sample `v` to a pixel's per-channel sums and sums of squares.
+#[inline]
+pub(crate) fn add_sample(sum: &mut [f64; 3], sum_sq: &mut [f64; 3], v: Vec3A) {
+    for c in 0..3 {
+        sum[c] += f64::from(v[c]);
+        sum_sq[c] += f64::from(v[c]) * f64::from(v[c]);
+    }
+}
+
+/// A probe over the lattice of pixels of [`probe_stride`]: `pixel_sums(pixel, scratch)` takes
+/// the pixel's [`PROBE_SPP`] samples and returns their per-channel sums and sums of squares.
+/// Returns the mean per-sample variance and the rays per sample (rows summed in order: the
+/// same figures at any thread count).
+pub(crate) fn probe_lattice<A: Accel>(
+    ctx: &RenderContext<A>,
+    pixel_sums: impl Fn(UVec2, &mut Scratch) -> ([f64; 3], [f64; 3]) + Sync,
+) -> (f64, f64) {
+    let (width, height) = (ctx.scene.camera.width, ctx.scene.camera.height);
+    let stride = probe_stride(width, height);
+    let (mut rows, rays) = (0..height.div_ceil(stride))
+        .into_par_iter()
+        .map(|i| stride * i)
+        .with_min_len(2)
+        .fold(
+            || (Vec::new(), 0u64),
+            |(mut rows, rays), y| {
+                let mut scratch = Scratch::default();
+                let row: Vec<([f64; 3], [f64; 3])> =
+                    (0..width).step_by(stride as usize).map(|x| pixel_sums(UVec2::new(x, y), &mut scratch)).collect();
+                rows.push((y, row));
+                (rows, rays + scratch.rays)
+            },
+        )
+        .reduce(
+            || (Vec::new(), 0),
+            |(mut rows, r), (more, s)| {
+                rows.extend(more);
+                (rows, r + s)
+            },
+        );
+    rows.sort_unstable_by_key(|r: &(u32, Vec<_>)| r.0);
+    let (sum, sum_sq): (Vec<_>, Vec<_>) = rows.into_iter().flat_map(|r| r.1).unzip();
+    let samples = sum.len() as f64 * f64::from(PROBE_SPP);
+    (mean_variance(PROBE_SPP, &sum, &sum_sq), rays as f64 / samples.max(1.0))
 }
 
 /// The environment seen along `dir`, sampled with density `pdf`, weighed against NEE's.

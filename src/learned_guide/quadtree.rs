@@ -295,6 +295,16 @@ impl Forest {
         root
     }
 
+    /// A refined copy of every tree, in order ([`Self::refine_into`]).
+    #[must_use]
+    pub fn refined(&self, threshold: f32, min_samples: u32) -> Forest {
+        let mut forest = Forest::default();
+        for t in 0..self.len() {
+            self.refine_into(t, threshold, min_samples, &mut forest);
+        }
+        forest
+    }
+
     /// Appends a copy of tree `t` of `self` (topology and energies) to `out`.
     pub fn copy_into(&self, t: usize, out: &mut Forest) -> u32 {
         let base = out.nodes.len() as u32;

@@ -194,11 +194,7 @@ impl VolumeGuide {
     /// Starts a training iteration: deposits go to a copy of the frozen trees, refined where
     /// they hold energy.
     pub fn begin_iteration(&mut self) {
-        let mut forest = Forest::default();
-        for t in 0..self.trees.len() {
-            self.trees.refine_into(t, SPLIT_THRESHOLD, MIN_LEAF_SAMPLES, &mut forest);
-        }
-        self.filling = Some(forest);
+        self.filling = Some(self.trees.refined(SPLIT_THRESHOLD, MIN_LEAF_SAMPLES));
     }
 
     /// Empty accumulators for one worker (none outside an iteration).
