@@ -52,15 +52,25 @@ fn embree_agrees_with_brute_force_and_bvh() {
         let o = (Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * 0.8;
         rays.push(Ray::new(o, (target - o).normalize()));
     }
-    let (mut same_prim, mut same_t) = (0usize, 0usize);
+    // Brute force costs a test per triangle (81,920): it checks every 8th ray, Embree and
+    // the BVH are compared on all of them.
+    const BRUTE_EVERY: usize = 8;
+    let (mut same_prim, mut same_t, mut random_checked) = (0usize, 0usize, 0usize);
     for (i, r) in rays.iter().enumerate() {
-        let (e, b, x) = (embree.intersect(r), bvh.intersect(r), brute.intersect(r));
-        assert!(agree(e, x), "embree {e:?} vs brute {x:?} for {r:?}");
-        assert!(agree(b, x), "bvh {b:?} vs brute {x:?} for {r:?}");
+        let (e, b) = (embree.intersect(r), bvh.intersect(r));
         assert!(agree(e, b), "embree {e:?} vs bvh {b:?} for {r:?}");
         same_t += 1;
+        if i % BRUTE_EVERY != 0 {
+            continue;
+        }
+        let x = brute.intersect(r);
+        assert!(agree(e, x), "embree {e:?} vs brute {x:?} for {r:?}");
+        assert!(agree(b, x), "bvh {b:?} vs brute {x:?} for {r:?}");
         // Primitives are compared on the random rays; the aimed ones hit shared edges.
-        same_prim += (i < 100_000 && e.map(|h| h.prim) == x.map(|h| h.prim)) as usize;
+        if i < 100_000 {
+            random_checked += 1;
+            same_prim += (e.map(|h| h.prim) == x.map(|h| h.prim)) as usize;
+        }
         // Occlusion up to half the hit distance (or 10 on a miss), where the closest-hit
         // answers agree on whether anything is there (edge-grazing one-sided hits excluded).
         if e.is_some() == x.is_some() {
@@ -69,9 +79,9 @@ fn embree_agrees_with_brute_force_and_bvh() {
         }
     }
     eprintln!(
-        "embree vs brute force: {same_t} rays agree in t; {same_prim} of the 100000 random ones on the same primitive"
+        "embree vs bvh: {same_t} rays agree in t; {same_prim} of {random_checked} random ones on brute force's primitive"
     );
-    assert!(same_prim * 1000 >= 100_000 * 999, "too many primitive mismatches: {same_prim}/100000");
+    assert!(same_prim * 1000 >= random_checked * 999, "too many primitive mismatches: {same_prim}/{random_checked}");
 }
 
 /// Watertightness: rays from inside a closed, shared-vertex sphere (81,920 triangles) must hit

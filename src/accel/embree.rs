@@ -29,6 +29,12 @@ mod sys {
 /// `RTC_INVALID_GEOMETRY_ID` (a macro bindgen does not emit).
 const INVALID_ID: u32 = u32::MAX;
 
+/// The lane mask of an 8-wide packet call: Embree reads it with aligned vector loads, so it
+/// must be aligned like the packet (32 bytes); a plain `[i32; 8]` is only 4-byte aligned and
+/// crashes whenever the stack happens to place it off a 32-byte boundary.
+#[repr(C, align(32))]
+struct ValidMask8([i32; 8]);
+
 /// The first error Embree reported through its callback, kept until we read it.
 struct ErrorSlot(Mutex<Option<String>>);
 
@@ -265,12 +271,12 @@ impl Accel for EmbreeAccel<'_> {
     fn intersect_batch(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         for (rays, hits) in rays.chunks(8).zip(hits.chunks_mut(8)) {
             let mut packet = sys::RTCRayHit8::default();
-            let mut valid = [0i32; 8];
+            let mut valid = ValidMask8([0; 8]);
             for (i, r) in rays.iter().enumerate() {
                 if !r.is_valid() {
                     continue;
                 }
-                valid[i] = -1;
+                valid.0[i] = -1;
                 let (p, h) = (&mut packet.ray, &mut packet.hit);
                 (p.org_x[i], p.org_y[i], p.org_z[i]) = (r.origin.x, r.origin.y, r.origin.z);
                 (p.dir_x[i], p.dir_y[i], p.dir_z[i]) = (r.dir.x, r.dir.y, r.dir.z);
@@ -278,10 +284,11 @@ impl Accel for EmbreeAccel<'_> {
                 h.geomID[i] = INVALID_ID;
             }
             // SAFETY: `packet` is a 32-byte aligned RTCRayHit8 (bindgen keeps the header's
-            // alignment), initialised for every lane `valid` marks; invalid lanes are ignored.
-            unsafe { call!(rtcIntersect8, valid.as_ptr(), self.raw.as_ptr(), &mut packet) };
+            // alignment) and `valid` a 32-byte aligned mask, as Embree's packet calls require;
+            // every lane `valid` marks is initialised; invalid lanes are ignored.
+            unsafe { call!(rtcIntersect8, valid.0.as_ptr(), self.raw.as_ptr(), &mut packet) };
             for (i, h) in hits.iter_mut().enumerate() {
-                *h = (valid[i] != 0 && packet.hit.geomID[i] != INVALID_ID).then(|| Hit {
+                *h = (valid.0[i] != 0 && packet.hit.geomID[i] != INVALID_ID).then(|| Hit {
                     t: packet.ray.tfar[i],
                     prim: packet.hit.primID[i],
                     u: packet.hit.u[i],
@@ -294,20 +301,20 @@ impl Accel for EmbreeAccel<'_> {
     fn occluded_batch(&self, rays: &[Ray], t_max: &[f32], out: &mut [bool]) {
         for ((rays, t_max), out) in rays.chunks(8).zip(t_max.chunks(8)).zip(out.chunks_mut(8)) {
             let mut packet = sys::RTCRay8::default();
-            let mut valid = [0i32; 8];
+            let mut valid = ValidMask8([0; 8]);
             for (i, (r, &t)) in rays.iter().zip(t_max).enumerate() {
                 if !r.is_valid() || t.is_nan() || t <= 0.0 {
                     continue;
                 }
-                valid[i] = -1;
+                valid.0[i] = -1;
                 (packet.org_x[i], packet.org_y[i], packet.org_z[i]) = (r.origin.x, r.origin.y, r.origin.z);
                 (packet.dir_x[i], packet.dir_y[i], packet.dir_z[i]) = (r.dir.x, r.dir.y, r.dir.z);
                 (packet.tnear[i], packet.tfar[i], packet.mask[i]) = (0.0, t, u32::MAX);
             }
-            // SAFETY: as in `intersect_batch`, with an aligned RTCRay8.
-            unsafe { call!(rtcOccluded8, valid.as_ptr(), self.raw.as_ptr(), &mut packet) };
+            // SAFETY: as in `intersect_batch`, with an aligned RTCRay8 and mask.
+            unsafe { call!(rtcOccluded8, valid.0.as_ptr(), self.raw.as_ptr(), &mut packet) };
             for (i, o) in out.iter_mut().enumerate() {
-                *o = valid[i] != 0 && packet.tfar[i] == f32::NEG_INFINITY;
+                *o = valid.0[i] != 0 && packet.tfar[i] == f32::NEG_INFINITY;
             }
         }
     }
