@@ -4,7 +4,7 @@
     python3 scripts/results.py --zvidpt BIN (--quick | --full) [--bitterli COLLECTION]
         [--out DIR] [--write] [--studies cornell-paper,race,suite,cycles]
 
-Four studies, each the source of one row of the README's headline table:
+Four studies; the first, second and fourth are the rows of the README's headline table:
 
 1. cornell-paper (512x384): seconds each integrator needs to reach the MSE of a 256-spp path
    image, learning included. A `zvidpt reference` (path), the target (`zvidpt converge
@@ -15,18 +15,23 @@ Four studies, each the source of one row of the README's headline table:
 2. cornell-mitsuba against Mitsuba 3 at equal time (peers/race.py; skipped without pip's
    `mitsuba`).
 3. Bitterli's seven complete scenes at equal time (scripts/suite.py; skipped without
-   --bitterli or $BITTERLI, the collection's root folder). --quick renders no reference: it
-   measures each integrator's MSE as its variance over pairs of seeds (`suite.py
-   --seed-pairs`; every integrator is unbiased), which needs no reference and carries no
-   reference noise; --full measures it against 4096-spp references (two halves, whose own
-   noise is taken out).
+   --bitterli or $BITTERLI, the collection's root folder), written to docs/results.md. Its
+   figures are heavy-tailed (single-pixel caustic paths decide some scenes' MSE), so eight
+   seeds of 8 s and references are needed: --full only, unless named in --studies, when
+   --quick measures each integrator's MSE as its variance over pairs of seeds (`suite.py
+   --seed-pairs`, 6 s, four seeds; no reference).
 4. cornell-paper against Blender's Cycles, path tracing and path guiding, at equal time
    (peers/race_cycles.py; skipped without pip's `bpy`).
 
+--quick runs the headline's studies at the headline's own time budgets and seeds, with
+cheaper references (whose noise is taken out of every MSE, so they change no figure in
+expectation), and then checks each of its figures against the README's: the ratio of the
+two and a z-score from the seeds' spread, within noise where |z| <= 3.
+
 Writes DIR/results.md (default `results`): every table, each with the machine, thread count,
-commit and date it was measured on, and the headline table. --full (and --quick with --write)
-also rewrites the generated sections of docs/results.md (between `<!-- results: NAME -->`
-markers), docs/suite.png, and the README's headline table.
+commit and date it was measured on, the headline table and (--quick) the check. --full (and
+--quick with --write) also rewrites the generated sections of docs/results.md (between
+`<!-- results: NAME -->` markers), docs/suite.png, and the README's headline table.
 """
 import argparse
 import csv
@@ -44,12 +49,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 COMPLETE = ["coffee", "cornell-box", "hair-curl", "veach-bidir", "veach-mis", "volumetric-caustic", "water-caustic"]
 MODES = {
-    "quick": dict(ttm_ref=512, runs=2, race_time=10, race_seeds="1,2", race_ref=256, suite_time=6, suite_ref=0,
-                  suite_seed_pairs=True, suite_seeds="1,2,3,4", suite_integrators="path;zvidpt", cycles_time=5, cycles_ref=256,
-                  cycles_integrators="path;zvidpt"),
+    "quick": dict(ttm_ref=512, runs=2, race_time=20, race_seeds="1,2", race_ref=256, suite_time=6, suite_ref=0,
+                  suite_seed_pairs=True, suite_seeds="1,2,3,4", suite_integrators="path;zvidpt", cycles_time=20, cycles_ref=256,
+                  cycles_integrators="path;zvidpt", studies="cornell-paper,race,cycles"),
     "full": dict(ttm_ref=8192, runs=2, race_time=20, race_seeds="1,2", race_ref=4096, suite_time=8, suite_ref=4096,
                  suite_seed_pairs=False, suite_seeds="1,2,3,4,5,6,7,8", suite_integrators="path;zvidpt;jensen --learned-guide on", cycles_time=20,
-                 cycles_ref=8192, cycles_integrators="path;zvidpt;jensen --learned-guide on"),
+                 cycles_ref=8192, cycles_integrators="path;zvidpt;jensen --learned-guide on",
+                 studies="cornell-paper,race,suite,cycles"),
 }
 
 
@@ -85,6 +91,22 @@ def machine():
 def stamp(m, mode, seconds):
     return (f"*Measured by `scripts/results.sh --{mode}` on {m['cpu']}, {m['threads']} threads, commit "
             f"{m['commit']}, {m['date']} ({seconds:.0f} s).*")
+
+
+def rel_se(values):
+    """The standard error of the mean of `values` over the mean (nan from fewer than two)."""
+    v = [x for x in values if not math.isnan(x)]
+    if len(v) < 2 or sum(v) == 0:
+        return math.nan
+    m = sum(v) / len(v)
+    sd = math.sqrt(sum((x - m) ** 2 for x in v) / (len(v) - 1))
+    return sd / math.sqrt(len(v)) / abs(m)
+
+
+def number(text, pattern=r"([0-9]+(?:\.[0-9]*)?(?:e[-+]?[0-9]+)?)"):
+    """The first number `pattern` finds in `text` (its first group), or None."""
+    m = re.search(pattern, text)
+    return float(m.group(1)) if m else None
 
 
 def read_csv(path):
@@ -126,7 +148,9 @@ def cornell_paper(a, s, out, log):
     head = (f"seconds to the MSE of 256-spp path ({target:.4f}), seeds {seeds}",
             ", ".join(f"{x:.1f}" for x in seconds["path"]),
             "**" + ", ".join(f"{x:.1f}" for x in seconds["zvidpt"]) + f"** ({ratio:.3f}×)", "")
-    return "\n".join(lines), head
+    se = math.hypot(rel_se(seconds["zvidpt"]), rel_se(seconds["path"]))
+    checks = [("zvidpt's seconds ÷ path's", ratio, se, lambda cells: number(cells[3], r"\(([0-9.]+)×\)"))]
+    return "\n".join(lines), head, checks
 
 
 def peer_race(a, out, log, modules, what, script, scene, seconds, args, name):
@@ -143,7 +167,7 @@ def peer_race(a, out, log, modules, what, script, scene, seconds, args, name):
     for r in read_csv(d / f"{name}.csv"):
         by.setdefault((r["renderer"], r["integrator"]), []).append(float(r["mse_x_seconds"]))
     mean = {k: sum(v) / len(v) for k, v in by.items()}
-    return stamp(a.m, a.mode, time.time() - t0) + "\n\n" + (d / f"{name}.md").read_text().strip(), mean
+    return stamp(a.m, a.mode, time.time() - t0) + "\n\n" + (d / f"{name}.md").read_text().strip(), mean, by
 
 
 def race(a, s, out, log):
@@ -153,11 +177,25 @@ def race(a, s, out, log):
                   ["--seeds", s["race_seeds"], "--ref-spp", s["race_ref"]], "race")
     if r is None:
         return None
-    md, mean = r
-    mitsuba = [v for (renderer, _), v in mean.items() if renderer != "zvidpt"]
+    md, mean, by = r
+    mitsuba = [k for k in mean if k[0] != "zvidpt"]
     head = (f"MSE × seconds at {s['race_time']} s", f"{mean[('zvidpt', 'path')]:.4f}",
-            f"**{mean[('zvidpt', 'zvidpt')]:.4f}**", f"Mitsuba 3 `path`: {mitsuba[0]:.4f}" if mitsuba else "")
-    return md, head
+            f"**{mean[('zvidpt', 'zvidpt')]:.4f}**", f"Mitsuba 3 `path`: {mean[mitsuba[0]]:.4f}" if mitsuba else "")
+    checks = ratio_checks(mean, by, [(("zvidpt", "zvidpt"), "`zvidpt`", lambda c: number(c[3]))]
+                          + [(k, "Mitsuba 3", lambda c: number(c[4], r"Mitsuba 3 `path`: ([0-9.]+)")) for k in mitsuba])
+    return md, head, checks
+
+
+def ratio_checks(mean, by, figures):
+    """Checks of each (key, name, README cell reader) figure as a ratio to our path tracer's
+    MSE x seconds in the same run (the absolute figures depend on the machine's speed)."""
+    base = ("zvidpt", "path")
+    out = []
+    for key, name, read in figures:
+        se = math.hypot(rel_se(by[key]), rel_se(by[base]))
+        out.append((f"{name} ÷ `path`, MSE × s", mean[key] / mean[base], se,
+                    lambda c, read=read: (read(c) or math.nan) / (number(c[2]) or math.nan)))
+    return out
 
 
 def cycles(a, s, out, log):
@@ -167,11 +205,14 @@ def cycles(a, s, out, log):
                                      s["cycles_integrators"]], "cycles")
     if r is None:
         return None
-    md, mean = r
+    md, mean, by = r
     peers = ", ".join(f"Cycles {name}: {v:.4f}" for (renderer, name), v in mean.items() if renderer == "cycles")
     head = (f"MSE × seconds at {s['cycles_time']} s", f"{mean[('zvidpt', 'path')]:.4f}",
             f"**{mean[('zvidpt', 'zvidpt')]:.4f}**", peers)
-    return md, head
+    checks = ratio_checks(mean, by, [(("zvidpt", "zvidpt"), "`zvidpt`", lambda c: number(c[3]))] + [
+        (k, f"Cycles {k[1]}", lambda c, p="Cycles " + re.escape(k[1]) + r": ([0-9.]+)": number(c[4], p))
+        for k in mean if k[0] == "cycles"])
+    return md, head, checks
 
 
 def missing_files(scene):
@@ -275,6 +316,39 @@ def replace_headline_rows(path, head):
     replace_section(path, "headline", "\n".join(lines))
 
 
+def check_headline(readme, checks):
+    """Each figure of this run against the README headline's: their ratio and a z-score of
+    its logarithm, whose standard error is this run's (from its seeds' spread) counted twice,
+    for the README's measurement of the same settings. Returns a Markdown table."""
+    text = readme.read_text()
+    m = re.search(r"<!-- results: headline -->\n(.*?)\n<!-- /results: headline -->", text, re.S)
+    rows = {}
+    for line in (m.group(1).splitlines() if m else []):
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) >= 5:
+            rows[cells[0]] = cells
+    lines = ["| scene | figure | README | this run | ratio | z | |", "|---|---|---|---|---|---|---|"]
+    within = total = 0
+    for row, what, value, se, extract in checks:
+        cells = rows.get(row[0])
+        # The same measure (a parenthesised figure aside: the target MSE holds its reference's noise).
+        same = cells and re.sub(r"\([^)]*\)", "", cells[1]) == re.sub(r"\([^)]*\)", "", row[1])
+        theirs = extract(cells) if same else None
+        if theirs is None or not theirs > 0 or not value > 0:
+            lines.append(f"| {row[0]} | {what} | (not in the README at these settings) | {value:.4g} | | | |")
+            continue
+        ratio = value / theirs
+        z = math.log(ratio) / (math.sqrt(2) * se) if se > 0 else math.inf
+        ok = abs(z) <= 3
+        within += ok
+        total += 1
+        lines.append(f"| {row[0]} | {what} | {theirs:.4g} | {value:.4g} | {ratio:.3f} | {z:+.1f} | "
+                     f"{'within noise' if ok else '**outside noise**'} |")
+    lines += ["", f"{within} of {total} figures within noise of the README's (|z| <= 3; z from this run's seeds' "
+              "spread, counted once for each measurement)."]
+    return "\n".join(lines)
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     g = p.add_mutually_exclusive_group(required=True)
@@ -284,12 +358,12 @@ def main():
     p.add_argument("--bitterli", help="Bitterli's collection (its root folder)")
     p.add_argument("--out", default="results")
     p.add_argument("--write", action="store_true", help="with --quick: rewrite the docs too")
-    p.add_argument("--studies", default="cornell-paper,race,suite,cycles",
-                   help="the studies to run, comma-separated (default all four); --full rewrites the README's "
-                        "headline rows of the studies that ran")
+    p.add_argument("--studies",
+                   help="the studies to run, comma-separated (default: all four with --full; cornell-paper,race,cycles, "
+                        "the headline's, with --quick); --full rewrites the README's headline rows of the studies that ran")
     a = p.parse_args()
     a.zvidpt = str(Path(a.zvidpt).resolve())
-    studies = [x.strip() for x in a.studies.split(",") if x.strip()]
+    studies = [x.strip() for x in (a.studies or MODES[a.mode]["studies"]).split(",") if x.strip()]
     known = ("cornell-paper", "race", "suite", "cycles")
     unknown = [x for x in studies if x not in known]
     if unknown or not studies:
@@ -301,27 +375,35 @@ def main():
     a.m = machine()
     t0 = time.time()
     sections = {"cornell-paper": None, "race": None, "suite": None, "cycles": None}
-    head = []
+    head, checks = [], []
     if "cornell-paper" in studies:
-        md, head_paper = cornell_paper(a, s, out, log)
+        md, head_paper, c = cornell_paper(a, s, out, log)
         sections["cornell-paper"] = md
         head.append(("`cornell-paper` (indirect light)", *head_paper))
+        checks += [(head[-1], *x) for x in c]
     r = race(a, s, out, log) if "race" in studies else None
     if r:
         sections["race"] = r[0]
         head.append(("`cornell-mitsuba` (direct light, glossy, glass)", *r[1]))
+        checks += [(head[-1], *x) for x in r[2]]
     plot = None
     r = suite(a, s, out, log) if "suite" in studies else None
     if r:
+        # Not a headline row: its heavy tails need the full run's seeds (docs/results.md).
         sections["suite"], plot = r[0], r[2]
-        head.append((f"Bitterli's {len(COMPLETE)} complete scenes, film / 8", *r[1]))
+        print(f"\nBitterli's complete scenes, geometric mean of path's MSE ÷ zvidpt's: {r[1][2]}")
     r = cycles(a, s, out, log) if "cycles" in studies else None
     if r:
         sections["cycles"] = r[0]
         head.append(("`cornell-paper` against Cycles", *r[1]))
+        checks += [(head[-1], *x) for x in r[2]]
     headline = "\n".join(["| scene | measure | `path` | `zvidpt` | peers |", "|---|---|---|---|---|"]
                          + ["| " + " | ".join(row) + " |" for row in head])
     report = [f"# Results ({a.mode})", "", stamp(a.m, a.mode, time.time() - t0), "", "## Headline", "", headline]
+    if a.mode == "quick" and checks:
+        verdict = check_headline(ROOT / "README.md", checks)
+        report += ["", "## Against the README's headline", "", verdict]
+        print("\n" + verdict)
     for name, body in sections.items():
         if body:
             report += ["", f"## {name}", "", body]
