@@ -369,6 +369,9 @@ def main():
     if unknown or not studies:
         p.error(f"--studies: unknown study {', '.join(unknown) or '(none given)'} ({', '.join(known)})")
     s = MODES[a.mode]
+    if (a.bitterli or os.environ.get("BITTERLI")) and "suite" not in studies:
+        print("(the Bitterli suite is not among the studies: it runs with --full, or with --studies ...,suite)",
+              file=sys.stderr)
     out = Path(a.out).resolve()
     out.mkdir(parents=True, exist_ok=True)
     log = out / "results.log"
