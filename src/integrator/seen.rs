@@ -299,6 +299,15 @@ pub fn plan(width: u32, stats: &SeenStats, projected: &[f32], cost: f64, max_str
     SeenPlan { width, strata }
 }
 
+/// [`plan`] from the lights' projections onto the film alone (no pass measured yet): where a
+/// light smaller than a pixel projects, split from the start. Samples drawn under it stay
+/// unbiased, since the plan looks at no sample.
+#[must_use]
+pub fn plan_from_projection(width: u32, projected: &[f32], max_strata: u8) -> SeenPlan {
+    let none = SeenStats { samples: 1, sums: vec![[0.0; 5]; projected.len()], rays: 0 };
+    plan(width, &none, projected, 1.0, max_strata)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -13,7 +13,7 @@
 //! share needs no place in them.
 use super::{MisAt, RenderContext, Scatter, Scratch, nee_strategy, path::Mis, power_heuristic, sample_bsdf};
 use crate::accel::Accel;
-use crate::geometry::{Frame, Ray, UVec2, Vec3A, offset_ray_origin};
+use crate::geometry::{Frame, Ray, UVec2, Vec2, Vec3A, offset_ray_origin, warp};
 use crate::learned_guide::volume::{VolumeDeposits, VolumeGuide};
 use crate::light::{LightSampling, Receiver};
 use crate::sampler::{SampleStream, survival_probability};
@@ -103,14 +103,7 @@ pub(crate) fn trace_volume_path<A: Accel>(
                     let c = g.cell(x);
                     (c, g.mix_at(c))
                 });
-                let mixture = |dir: Vec3A, phase: f32| {
-                    if alpha > 0.0 {
-                        let g = guide.map_or(0.0, |g| g.pdf(cell, dir));
-                        alpha * g + (1.0 - alpha) * phase
-                    } else {
-                        phase
-                    }
-                };
+                let mixture = |dir: Vec3A, phase: f32| guide.map_or(phase, |g| g.mixture_pdf(cell, alpha, dir, phase));
                 radiance += throughput
                     * next_event(ctx, &at, x, medium, weigh, rng, scratch, |dir| {
                         let p = m.phase(wi, dir);
@@ -123,34 +116,25 @@ pub(crate) fn trace_volume_path<A: Accel>(
                 let (dir, pdf) = match guide {
                     None => m.sample_phase(wi, rng.next_2d()),
                     Some(g) => {
-                        // Which strategy, then the direction: the density is the mixture's
-                        // whichever drew it, and the weight `p/pdf` (1 without a tree).
-                        let pick = rng.next_f32();
-                        let dir = if pick < alpha {
-                            g.sample(cell, rng.next_2d())
-                        } else {
-                            m.sample_phase(wi, rng.next_2d()).0
-                        };
-                        let phase = m.phase(wi, dir);
+                        // The weight `p/pdf` (1 without a tree).
                         let recording = deposits.is_some() && scratch.medium_vertices.len() < MAX_RECORDED;
-                        let tree = if alpha > 0.0 || recording { g.pdf(cell, dir) } else { 0.0 };
-                        let pdf = alpha * tree + (1.0 - alpha) * phase;
-                        if pdf.is_nan() || pdf <= 0.0 {
+                        let d = draw_mixture(
+                            g,
+                            cell,
+                            alpha,
+                            recording,
+                            rng,
+                            |u| m.sample_phase(wi, u).0,
+                            |dir| m.phase(wi, dir),
+                        );
+                        if d.pdf.is_nan() || d.pdf <= 0.0 {
                             break;
                         }
-                        throughput *= phase / pdf;
+                        throughput *= d.base / d.pdf;
                         if recording {
-                            scratch.medium_vertices.push(MediumVertex {
-                                cell: cell as u32,
-                                dir,
-                                base: phase,
-                                tree,
-                                pdf,
-                                radiance,
-                                throughput,
-                            });
+                            scratch.medium_vertices.push(d.vertex(cell, radiance, throughput));
                         }
-                        (dir, pdf)
+                        (d.dir, d.pdf)
                     }
                 };
                 previous = Some(Previous { at, pdf, mis: weigh });
@@ -225,8 +209,8 @@ pub(crate) fn trace_volume_path<A: Accel>(
             _ => None,
         };
         let mixture = |dir: Vec3A, bsdf_pdf: f32| match guided {
-            Some((g, cell, alpha, _)) if alpha > 0.0 => alpha * g.pdf(cell, dir) + (1.0 - alpha) * bsdf_pdf,
-            _ => bsdf_pdf,
+            Some((g, cell, alpha, _)) => g.mixture_pdf(cell, alpha, dir, bsdf_pdf),
+            None => bsdf_pdf,
         };
         if !si.material.bsdf.is_delta() {
             radiance +=
@@ -238,35 +222,29 @@ pub(crate) fn trace_volume_path<A: Accel>(
         let s = match guided {
             None => sample_bsdf(&si, &frame, wi, rng),
             Some((g, cell, alpha, rho)) => {
-                let pick = rng.next_f32();
-                let dir = if pick < alpha {
-                    g.sample(cell, rng.next_2d())
-                } else {
-                    frame.to_world(crate::geometry::warp::cosine_hemisphere(rng.next_2d()))
-                };
-                let local = frame.to_local(dir);
-                let cosine = crate::geometry::warp::cosine_hemisphere_pdf(local.z);
                 let recording = deposits.is_some() && scratch.medium_vertices.len() < MAX_RECORDED;
-                let tree = if alpha > 0.0 || recording { g.pdf(cell, dir) } else { 0.0 };
-                let pdf = alpha * tree + (1.0 - alpha) * cosine;
-                if local.z <= 0.0 || !si.consistent(dir, local.z) || pdf.is_nan() || pdf <= 0.0 {
+                let mut local = Vec3A::ZERO;
+                let d = draw_mixture(
+                    g,
+                    cell,
+                    alpha,
+                    recording,
+                    rng,
+                    |u| frame.to_world(warp::cosine_hemisphere(u)),
+                    |dir| {
+                        local = frame.to_local(dir);
+                        warp::cosine_hemisphere_pdf(local.z)
+                    },
+                );
+                if local.z <= 0.0 || !si.consistent(d.dir, local.z) || d.pdf.is_nan() || d.pdf <= 0.0 {
                     break;
                 }
                 // f·cos/pdf with f = ρ/π: ρ·(cos/π)/pdf.
-                let weight = rho * (cosine / pdf);
+                let weight = rho * (d.base / d.pdf);
                 if recording {
-                    let (base, throughput) = (cosine, throughput * weight);
-                    scratch.medium_vertices.push(MediumVertex {
-                        cell: cell as u32,
-                        dir,
-                        base,
-                        tree,
-                        pdf,
-                        radiance,
-                        throughput,
-                    });
+                    scratch.medium_vertices.push(d.vertex(cell, radiance, throughput * weight));
                 }
-                Some(Scatter { dir, weight, pdf, delta: false })
+                Some(Scatter { dir: d.dir, weight, pdf: d.pdf, delta: false })
             }
         };
         let Some(s) = s else {
@@ -283,6 +261,54 @@ pub(crate) fn trace_volume_path<A: Accel>(
         deposit(g, d, &scratch.medium_vertices, radiance);
     }
     radiance
+}
+
+/// A direction drawn from a cell's one-sample mixture ([`draw_mixture`]).
+struct Drawn {
+    dir: Vec3A,
+    /// The base strategy's density of `dir` (the phase function's value, or `cos/π`).
+    base: f32,
+    /// The tree's density of `dir` (0 where neither the mixture nor the recording needs it).
+    tree: f32,
+    /// The mixture's density of `dir`: what the direction was drawn with.
+    pdf: f32,
+}
+
+impl Drawn {
+    /// The vertex to learn from, the path's throughput `throughput` with this direction's
+    /// weight and `radiance` gathered before it.
+    fn vertex(&self, cell: usize, radiance: Vec3A, throughput: Vec3A) -> MediumVertex {
+        MediumVertex {
+            cell: cell as u32,
+            dir: self.dir,
+            base: self.base,
+            tree: self.tree,
+            pdf: self.pdf,
+            radiance,
+            throughput,
+        }
+    }
+}
+
+/// Which strategy of `cell`'s one-sample mixture, then the direction: the tree with
+/// probability `alpha`, else `base_sample`, whose density is `base_pdf`. The density is the
+/// mixture's whichever drew it; the tree's is looked up where the mixture or, when
+/// `recording`, the learning needs it.
+#[inline]
+fn draw_mixture(
+    g: &VolumeGuide,
+    cell: usize,
+    alpha: f32,
+    recording: bool,
+    rng: &mut SampleStream,
+    base_sample: impl FnOnce(Vec2) -> Vec3A,
+    base_pdf: impl FnOnce(Vec3A) -> f32,
+) -> Drawn {
+    let pick = rng.next_f32();
+    let dir = if pick < alpha { g.sample(cell, rng.next_2d()) } else { base_sample(rng.next_2d()) };
+    let base = base_pdf(dir);
+    let tree = if alpha > 0.0 || recording { g.pdf(cell, dir) } else { 0.0 };
+    Drawn { dir, base, tree, pdf: alpha * tree + (1.0 - alpha) * base }
 }
 
 /// Most medium vertices of one path whose directions are learned from (the rest are still

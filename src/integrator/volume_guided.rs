@@ -16,7 +16,7 @@
 //! light smaller than a pixel projects, the seen light is split over the pixel from the first
 //! training pass on.
 use super::path::PathTracer;
-use super::seen::{SeenPlan, SeenStats, UNSPLIT, plan, projected_variance, split_seen};
+use super::seen::{SeenPlan, SeenStats, UNSPLIT, plan, plan_from_projection, projected_variance, split_seen};
 use super::volume::{Guidance, trace_volume_path};
 use super::zvidpt::{
     Iteration, LearnedSettings, MIN_TRAINING_SPP, PROBE_SPP, PixelSums, add_sample, add_training_sample, gather_rows,
@@ -205,10 +205,7 @@ impl Integrator for GuidedVolume {
         // render's own.
         let projected = projected_variance(ctx);
         let early = (self.settings.seen_strata > UNSPLIT)
-            .then(|| {
-                let none = SeenStats { samples: 1, sums: vec![[0.0; 5]; projected.len()], rays: 0 };
-                plan(width, &none, &projected, 1.0, self.settings.seen_strata)
-            })
+            .then(|| plan_from_projection(width, &projected, self.settings.seen_strata))
             .filter(|p| p.split_pixels().0 > 0);
         for k in 0..16u32 {
             if !iteration_fits(ctx, k, planned, time_budget, self.iterations.last()) {

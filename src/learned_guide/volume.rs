@@ -191,6 +191,14 @@ impl VolumeGuide {
         warp::uniform_sphere(self.trees.sample(cell, u).0)
     }
 
+    /// The density of `dir` under `cell`'s one-sample mixture: its tree with probability
+    /// `alpha`, the rest a base strategy of density `base` there.
+    #[inline]
+    #[must_use]
+    pub fn mixture_pdf(&self, cell: usize, alpha: f32, dir: Vec3A, base: f32) -> f32 {
+        if alpha > 0.0 { alpha * self.pdf(cell, dir) + (1.0 - alpha) * base } else { base }
+    }
+
     /// Starts a training iteration: deposits go to a copy of the frozen trees, refined where
     /// they hold energy.
     pub fn begin_iteration(&mut self) {
