@@ -222,6 +222,11 @@ pub struct PhotonArgs {
     /// (× √2 per iteration; PPG's c).
     #[arg(long, default_value_t = 4000)]
     pub split_samples: u64,
+    /// zvidpt: a cell whose directions' relative second moment (with its best mixture) exceeds
+    /// this splits at a proportionally lower count, down to a quarter of --split-samples (0:
+    /// every cell at --split-samples).
+    #[arg(long, default_value_t = 2.0)]
+    pub split_moment: f32,
     /// zvidpt: training samples per pixel in all (iterations of 1, 2, 4, …) [default: half
     /// of --spp; with --time, iterations while the next would end within 35% of the budget].
     #[arg(long)]
@@ -298,6 +303,7 @@ impl PhotonArgs {
             q_kappa: 1.0,
             roulette: Roulette::Window,
             split_samples: 4000,
+            split_moment: 2.0,
             train_spp: None,
             guide_mix: 0.75,
             learn_mix: Switch::On,
@@ -320,6 +326,7 @@ impl PhotonArgs {
             photons: self.photons,
             knn: self.knn,
             split_samples: self.split_samples,
+            split_moment: self.split_moment,
             guide_mix: self.guide_mix,
             learn_mix: self.learn_mix == Switch::On,
             guide_carry: self.guide_carry,
@@ -397,6 +404,9 @@ impl PhotonArgs {
         if !(16..=1 << 40).contains(&self.split_samples) {
             return Err(Error::InvalidOption("--split-samples must lie in 16..=2^40".into()));
         }
+        if !(self.split_moment == 0.0 || (self.split_moment >= 1.0 && self.split_moment.is_finite())) {
+            return Err(Error::InvalidOption("--split-moment must be 0 (off) or a number of at least 1".into()));
+        }
         if !(self.guide_mix >= 0.0 && self.guide_mix < 1.0) {
             return Err(Error::InvalidOption(
                 "--guide-mix must lie in [0, 1) (cosine sampling keeps every direction)".into(),
@@ -451,6 +461,7 @@ impl PhotonArgs {
             meta.push("train_spp", self.train_spp.map_or("-".into(), |n| n.to_string()));
             meta.push("roulette", flag_name(self.roulette));
             meta.push("split_samples", self.split_samples);
+            meta.push("split_moment", self.split_moment);
             meta.push("guide_mix", self.guide_mix);
             meta.push("learn_mix", flag_name(self.learn_mix));
             meta.push("guide_carry", self.guide_carry);

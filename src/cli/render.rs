@@ -577,6 +577,7 @@ mod tests {
         ("learned-guide", "jensen", "on"),
         ("roulette", "zvidpt", "albedo"),
         ("split-samples", "zvidpt", "100"),
+        ("split-moment", "zvidpt", "0"),
         ("train-spp", "zvidpt", "8"),
         ("guide-mix", "zvidpt", "0.5"),
         ("learn-mix", "zvidpt", "off"),

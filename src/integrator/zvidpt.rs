@@ -58,6 +58,15 @@ pub struct LearnedSettings {
     /// Samples a guide cell must receive in an iteration to be split (× √2 per iteration;
     /// PPG's c).
     pub split_samples: u64,
+    /// Relative second moment of a cell's directions (`n·Σ(g/p)²/(Σ g/p)²` with its best
+    /// mixture) above which it splits sooner: at `split_samples·split_moment/ρ`, down to a
+    /// quarter ([`crate::learned_guide::LearnedGuide::split_moment`]); 0: off. 2 against off
+    /// at equal time (one run; shipped scenes 256×192, 10 s, seeds 1–4; Bitterli's at an
+    /// eighth of their size, 8 s, seeds 1–8): water-caustic MSE 26 against 101 (path 539),
+    /// cornell-paper 0.0024 against 0.0028, cornell-classic and sky 5% and 12% lower,
+    /// cornell-box, coffee and veach-mis 2–5% lower, hair-curl 11% higher, cornell-materials
+    /// and veach-bidir within their spread.
+    pub split_moment: f32,
     /// Probability of sampling the learned density (the rest: cosine sampling): fixed, or the
     /// start of each cell's learned probability. 0.75 against 0.5: cornell-paper 20–24% lower
     /// MSE at 32 spp for 11% more time; cornell-classic, cornell-blocks and partition 0–4%
@@ -125,6 +134,7 @@ impl Default for LearnedSettings {
             photons: 6891,
             knn: 50,
             split_samples: 4000,
+            split_moment: 2.0,
             guide_mix: 0.75,
             learn_mix: true,
             guide_carry: 0.25,
@@ -989,6 +999,7 @@ impl Integrator for LearnedZvidpt {
         let map = PhotonMap::build(ctx.scene, ctx.accel, self.settings.photons, seed)?;
         let mut guide = LearnedGuide::seed(ctx.scene, &map, self.settings.knn)?;
         guide.split_samples = self.settings.split_samples;
+        guide.split_moment = self.settings.split_moment;
         guide.set_mix(self.settings.guide_mix);
         guide.learn_mix = self.settings.learn_mix;
         guide.carry = self.settings.guide_carry;

@@ -126,6 +126,9 @@ pub struct Deposits {
     /// Per cell: the second-moment estimates of each pair of [`MIX_CANDIDATES`] and
     /// [`BOX_CANDIDATES`] (index `i·BOX_CANDIDATES.len() + j`).
     moments: Vec<[u64; MOMENTS]>,
+    /// Per cell: the sum of the directions' one-sample estimates `g/p` and their count (the
+    /// first moment that [`Self::moments`] are measured against).
+    firsts: Vec<[u64; 2]>,
     /// Per cell: the energy its directions brought from inside each source box, and in all.
     sources: Vec<[u64; MAX_SOURCES + 1]>,
 }
@@ -153,6 +156,7 @@ impl Deposits {
         add(&mut self.sums, &other.sums);
         add(&mut self.spread, &other.spread);
         add(&mut self.moments, &other.moments);
+        add(&mut self.firsts, &other.firsts);
         add(&mut self.sources, &other.sources);
         self
     }
@@ -249,6 +253,11 @@ pub struct LearnedGuide {
     pub learn_mix: bool,
     /// Samples a cell must have received in an iteration to be split.
     pub split_samples: u64,
+    /// A cell whose directions' relative second moment `ρ` ([`relative_moment`]) exceeds this
+    /// splits at `split_samples·split_moment/ρ` (down to a quarter): where a cell's best
+    /// mixture stays far from zero variance, its lobes likely differ across it (caustics).
+    /// 0: off.
+    pub split_moment: f32,
     /// Weight per deposit of the previous trees' data in each new tree (see
     /// [`Forest::freeze_tree_blended`]).
     pub carry: f32,
@@ -326,6 +335,7 @@ impl LearnedGuide {
             mix: Vec::new(),
             learn_mix: false,
             split_samples: 4000,
+            split_moment: 0.0,
             carry: 0.25,
         };
         for b in 0..BUCKETS {
@@ -342,7 +352,7 @@ impl LearnedGuide {
                 add_spread(&mut spread[c], map.position(i) - guide.origin);
             }
             let before = cells;
-            cells = guide.split_cells(&spread, PHOTONS_PER_CELL, cells)?;
+            cells = guide.split_cells(&spread, &vec![PHOTONS_PER_CELL; cells], cells)?;
             last_spread = spread;
             if cells == before {
                 break;
@@ -485,7 +495,7 @@ impl LearnedGuide {
     /// halve at each split — at the mean along the second axis, then at the quartiles of the
     /// first and of the second (a normal's ±0.674σ): at most 16 cells from one per call. The
     /// new cells copy their parent's tree and estimates. Returns the number of cells.
-    fn split_cells(&mut self, spread: &[Spread], limit: u64, cells: usize) -> crate::Result<usize> {
+    fn split_cells(&mut self, spread: &[Spread], limits: &[u64], cells: usize) -> crate::Result<usize> {
         let mut parent_of: Vec<usize> = Vec::with_capacity(cells);
         let mut stack: Vec<(u32, Option<Plan>)> = Vec::new();
         for b in (0..BUCKETS).rev() {
@@ -500,6 +510,7 @@ impl LearnedGuide {
                 continue;
             }
             let plan = plan.or_else(|| Plan::from_spread(&spread[node.cell as usize], self.origin));
+            let limit = limits.get(node.cell as usize).copied().unwrap_or(u64::MAX);
             let split = plan.filter(|p| p.count > limit && p.level < 4 && node.depth < MAX_SPATIAL_DEPTH);
             let Some(plan) = split else {
                 self.nodes[n as usize].cell = parent_of.len() as u32;
@@ -633,6 +644,7 @@ impl LearnedGuide {
             sums: vec![[0; 7]; cells],
             spread: vec![[0; 7]; cells],
             moments: vec![[0; MOMENTS]; cells],
+            firsts: vec![[0; 2]; cells],
             sources: vec![[0; MAX_SOURCES + 1]; cells],
         }
     }
@@ -667,12 +679,18 @@ impl LearnedGuide {
     #[inline]
     pub fn deposit_moments(&self, d: &mut Deposits, cell: usize, g: f32, p: DirectionDensities) {
         let DirectionDensities { drawn: p_drawn, tree: p_tree, cosine: p_cos, source: p_box } = p;
-        if self.filling.is_none() || !self.learn_mix || !(g > 0.0 && p_drawn > 0.0) {
+        if self.filling.is_none() || !self.learn_mix {
+            return;
+        }
+        // Every direction counts towards the moments' mean, those that brought nothing too.
+        d.firsts[cell][1] += 1;
+        if !(g > 0.0 && p_drawn > 0.0) {
             return;
         }
         // Without a box only the β = 0 candidates can be estimated.
         let boxes = if p_box.is_some() { BOX_CANDIDATES.len() } else { 1 };
         let p_box = p_box.unwrap_or(0.0);
+        d.firsts[cell][0] = d.firsts[cell][0].wrapping_add(to_fixed(f64::from(g) / f64::from(p_drawn)));
         let m = &mut d.moments[cell];
         for (i, a) in MIX_CANDIDATES.into_iter().enumerate() {
             let mixture = a * p_tree + (1.0 - a) * p_cos;
@@ -743,7 +761,7 @@ impl LearnedGuide {
             return Ok(());
         };
         let cells = self.cells();
-        let Deposits { acc, sums, spread, moments, sources } = deposits;
+        let Deposits { acc, sums, spread, moments, firsts, sources } = deposits;
         if acc.len() != 8 * filling.nodes.len() || sums.len() != cells {
             return Err(crate::Error::InvalidOption("deposits of another training iteration".into()));
         }
@@ -827,9 +845,33 @@ impl LearnedGuide {
             }
         }
         let limit = (self.split_samples as f64 * 2f64.powf(k as f64 * 0.5)) as u64;
-        self.split_cells(&spread, limit, cells)?;
+        let limits: Vec<u64> = (0..cells)
+            .map(|c| {
+                if self.split_moment <= 0.0 {
+                    return limit;
+                }
+                let rho = relative_moment(&firsts[c], &moments[c]);
+                let factor = (rho / f64::from(self.split_moment)).clamp(1.0, MOMENT_SPLIT_MAX);
+                (limit as f64 / factor) as u64
+            })
+            .collect();
+        self.split_cells(&spread, &limits, cells)?;
         Ok(())
     }
+}
+
+/// Most a cell's split count is lowered for its directions' relative second moment
+/// ([`LearnedGuide::split_moment`]).
+const MOMENT_SPLIT_MAX: f64 = 4.0;
+
+/// A cell's relative second moment `n·M/S²` in one iteration: `S` the sum of its `n`
+/// directions' one-sample estimates `g/p`, `M` the lowest of the candidate mixtures' second
+/// moment sums (1 where every direction brings the same; 0 where nothing was measured).
+fn relative_moment(first: &[u64; 2], moments: &[u64; MOMENTS]) -> f64 {
+    let [sum, n] = *first;
+    let s = from_fixed(sum);
+    let best = moments.iter().copied().filter(|&m| m > 0).min().map_or(0.0, from_fixed);
+    if s > 0.0 { n as f64 * best / (s * s) } else { 0.0 }
 }
 
 /// How one cell is being split: from its samples' mean and spread on its two widest axes.
@@ -961,6 +1003,53 @@ mod tests {
         assert!(b.contains(Vec3A::new(0.0, 1.0, 0.0)) && b.hi.y - b.lo.y < 0.01, "{b:?}");
         assert!(b.lo.x < -0.25 && b.hi.x > 0.25 && b.lo.z < -0.2 && b.hi.z > 0.2, "{b:?}");
         assert!(b.hi.x - b.lo.x < 1.2 && b.hi.z - b.lo.z < 1.2, "{b:?}");
+    }
+
+    /// The relative second moment is 1 where every direction brings the same, 2 where half
+    /// bring nothing and the rest the same (`E[X²]/E[X]²` of such an estimator), and it is
+    /// measured with the best candidate mixture.
+    #[test]
+    fn relative_moment_of_even_and_sparse_directions() {
+        // 100 directions, each g/p = 2, every candidate's density the drawn one.
+        assert!((relative_moment(&[to_fixed(200.0), 100], &[to_fixed(400.0); MOMENTS]) - 1.0).abs() < 1e-6);
+        // Half of them bring nothing.
+        assert!((relative_moment(&[to_fixed(100.0), 100], &[to_fixed(200.0); MOMENTS]) - 2.0).abs() < 1e-6);
+        // The lowest candidate counts; nothing measured reads 0.
+        let mut m = [to_fixed(800.0); MOMENTS];
+        m[3] = to_fixed(400.0);
+        assert!((relative_moment(&[to_fixed(200.0), 100], &m) - 1.0).abs() < 1e-6);
+        assert_eq!(relative_moment(&[0, 100], &[0; MOMENTS]), 0.0);
+    }
+
+    /// A cell whose directions' relative second moment is 2 (half bring nothing) and that
+    /// received 3000 samples in the first iteration splits where `split_moment` is 1 (its
+    /// count lowered to 4000/2) and not where it is off or 4 (whose bound 2 lies below it).
+    #[test]
+    fn cells_far_from_zero_variance_split_sooner() {
+        let cells_after = |split_moment: f32| {
+            let mut guide = cornell_paper_seed(6891, 50);
+            guide.split_samples = 4000;
+            guide.split_moment = split_moment;
+            guide.learn_mix = true;
+            let p0 = Vec3A::new(0.1, -1.0, 0.1);
+            let cell = guide.cell(p0, Vec3A::Y);
+            guide.begin_iteration();
+            let mut d = guide.deposits();
+            let p = DirectionDensities { drawn: 1.0, tree: 1.0, cosine: 1.0, source: None };
+            for i in 0..3000u32 {
+                let x = p0 + Vec3A::new((i % 50) as f32, 0.0, (i / 50) as f32) * 1e-4;
+                assert_eq!(guide.cell(x, Vec3A::Y), cell);
+                guide.deposit_estimates(&mut d, cell, x, Vec3A::ONE, Vec3A::ONE);
+                guide.deposit_moments(&mut d, cell, (i % 2) as f32, p);
+            }
+            let before = guide.cells();
+            guide.end_iteration(0, d).unwrap();
+            (before, guide.cells())
+        };
+        let (before, off) = cells_after(0.0);
+        assert_eq!(off, before);
+        assert_eq!(cells_after(4.0).1, before);
+        assert!(cells_after(1.0).1 > before);
     }
 
     #[test]
