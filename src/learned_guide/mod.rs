@@ -253,8 +253,10 @@ pub struct LearnedGuide {
     pub learn_mix: bool,
     /// Samples a cell must have received in an iteration to be split.
     pub split_samples: u64,
-    /// A cell whose directions' relative second moment `ρ` ([`relative_moment`]) exceeds this
-    /// splits at `split_samples·split_moment/ρ` (down to a quarter): where a cell's best
+    /// A cell whose directions' relative second moment `ρ = n·M/S²` in the iteration (`S` the
+    /// sum of its `n` one-sample estimates `g/p`, `M` the least second-moment sum of its
+    /// candidate mixtures) exceeds this splits at `split_samples·split_moment/ρ` (down to a
+    /// quarter): where a cell's best
     /// mixture stays far from zero variance, its lobes likely differ across it (caustics).
     /// 0: off.
     pub split_moment: f32,
