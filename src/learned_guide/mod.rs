@@ -256,9 +256,8 @@ pub struct LearnedGuide {
     /// A cell whose directions' relative second moment `ρ = n·M/S²` in the iteration (`S` the
     /// sum of its `n` one-sample estimates `g/p`, `M` the least second-moment sum of its
     /// candidate mixtures) exceeds this splits at `split_samples·split_moment/ρ` (down to a
-    /// quarter): where a cell's best
-    /// mixture stays far from zero variance, its lobes likely differ across it (caustics).
-    /// 0: off.
+    /// quarter): where a cell's best mixture stays far from zero variance, its lobes likely
+    /// differ across it (caustics). 0: off.
     pub split_moment: f32,
     /// Weight per deposit of the previous trees' data in each new tree (see
     /// [`Forest::freeze_tree_blended`]).
@@ -354,7 +353,7 @@ impl LearnedGuide {
                 add_spread(&mut spread[c], map.position(i) - guide.origin);
             }
             let before = cells;
-            cells = guide.split_cells(&spread, &vec![PHOTONS_PER_CELL; cells], cells)?;
+            cells = guide.split_cells(&spread, |_| PHOTONS_PER_CELL, cells)?;
             last_spread = spread;
             if cells == before {
                 break;
@@ -492,12 +491,12 @@ impl LearnedGuide {
         boxes.into_iter().take(MAX_SOURCES).filter_map(|(lo, hi, _)| SourceBox::new(lo, hi)).collect()
     }
 
-    /// Splits every cell whose `spread` count exceeds `limit`: at the samples' mean along the
+    /// Splits every cell whose `spread` count exceeds `limit(cell)`: at the samples' mean along the
     /// axis they spread most, then — while the parts would still exceed it, assuming samples
     /// halve at each split — at the mean along the second axis, then at the quartiles of the
     /// first and of the second (a normal's ±0.674σ): at most 16 cells from one per call. The
     /// new cells copy their parent's tree and estimates. Returns the number of cells.
-    fn split_cells(&mut self, spread: &[Spread], limits: &[u64], cells: usize) -> crate::Result<usize> {
+    fn split_cells(&mut self, spread: &[Spread], limit: impl Fn(usize) -> u64, cells: usize) -> crate::Result<usize> {
         let mut parent_of: Vec<usize> = Vec::with_capacity(cells);
         let mut stack: Vec<(u32, Option<Plan>)> = Vec::new();
         for b in (0..BUCKETS).rev() {
@@ -512,7 +511,7 @@ impl LearnedGuide {
                 continue;
             }
             let plan = plan.or_else(|| Plan::from_spread(&spread[node.cell as usize], self.origin));
-            let limit = limits.get(node.cell as usize).copied().unwrap_or(u64::MAX);
+            let limit = limit(node.cell as usize);
             let split = plan.filter(|p| p.count > limit && p.level < 4 && node.depth < MAX_SPATIAL_DEPTH);
             let Some(plan) = split else {
                 self.nodes[n as usize].cell = parent_of.len() as u32;
@@ -847,17 +846,15 @@ impl LearnedGuide {
             }
         }
         let limit = (self.split_samples as f64 * 2f64.powf(k as f64 * 0.5)) as u64;
-        let limits: Vec<u64> = (0..cells)
-            .map(|c| {
-                if self.split_moment <= 0.0 {
-                    return limit;
-                }
-                let rho = relative_moment(&firsts[c], &moments[c]);
-                let factor = (rho / f64::from(self.split_moment)).clamp(1.0, MOMENT_SPLIT_MAX);
-                (limit as f64 / factor) as u64
-            })
-            .collect();
-        self.split_cells(&spread, &limits, cells)?;
+        let split_moment = f64::from(self.split_moment);
+        let cell_limit = |c: usize| {
+            if split_moment <= 0.0 {
+                return limit;
+            }
+            let factor = (relative_moment(&firsts[c], &moments[c]) / split_moment).clamp(1.0, MOMENT_SPLIT_MAX);
+            (limit as f64 / factor) as u64
+        };
+        self.split_cells(&spread, cell_limit, cells)?;
         Ok(())
     }
 }
