@@ -248,6 +248,11 @@ pub struct PhotonArgs {
     /// learned its light comes from (where it learned one; 0: off).
     #[arg(long, default_value_t = 0.3)]
     pub box_mix: f32,
+    /// zvidpt: caustic photons traced before training (photons that reach a Lambertian
+    /// surface straight from glass or a mirror): around where they left the specular surface
+    /// lie source boxes that the cells they reached aim at (0: none).
+    #[arg(long, default_value_t = 10_000)]
+    pub caustic_photons: usize,
     /// zvidpt: weight-window width s (no roulette or split while the expected contribution
     /// ratio lies in [2/(1+s), 2s/(1+s)]).
     #[arg(long, default_value_t = 5.0)]
@@ -309,6 +314,7 @@ impl PhotonArgs {
             learn_mix: Switch::On,
             guide_carry: 0.25,
             box_mix: 0.3,
+            caustic_photons: 10_000,
             window: 5.0,
             max_split: 8,
             roulette_cv: Switch::On,
@@ -331,6 +337,7 @@ impl PhotonArgs {
             learn_mix: self.learn_mix == Switch::On,
             guide_carry: self.guide_carry,
             box_mix: self.box_mix,
+            caustic_photons: self.caustic_photons,
             roulette,
             window: self.window,
             max_split: self.max_split,
@@ -418,6 +425,12 @@ impl PhotonArgs {
         if !(self.box_mix >= 0.0 && self.box_mix < 1.0) {
             return Err(Error::InvalidOption("--box-mix must lie in [0, 1)".into()));
         }
+        if self.caustic_photons > crate::photon::MAX_PHOTONS {
+            return Err(Error::InvalidOption(format!(
+                "--caustic-photons must lie in 0..={}",
+                crate::photon::MAX_PHOTONS
+            )));
+        }
         if !(self.window.is_finite() && self.window >= 1.0) {
             return Err(Error::InvalidOption("--window must be a number of at least 1".into()));
         }
@@ -466,6 +479,7 @@ impl PhotonArgs {
             meta.push("learn_mix", flag_name(self.learn_mix));
             meta.push("guide_carry", self.guide_carry);
             meta.push("box_mix", self.box_mix);
+            meta.push("caustic_photons", self.caustic_photons);
             meta.push("window", self.window);
             meta.push("max_split", self.max_split);
             meta.push("roulette_cv", flag_name(self.roulette_cv));

@@ -583,6 +583,7 @@ mod tests {
         ("learn-mix", "zvidpt", "off"),
         ("guide-carry", "zvidpt", "0.5"),
         ("box-mix", "zvidpt", "0.1"),
+        ("caustic-photons", "zvidpt", "0"),
         ("window", "zvidpt", "3"),
         ("max-split", "zvidpt", "4"),
         ("roulette-cv", "zvidpt", "off"),

@@ -11,23 +11,14 @@ use crate::scene::SurfaceInteraction;
 /// times a Lambertian lobe; the BSDF's sampling follows a glossy lobe).
 pub const BSDF_SHARE: f32 = 0.5;
 
-/// Roughness below which a glossy lobe is too narrow for a learned density to sample it: a
-/// direction the guide picks almost never falls in a lobe of this width.
-pub const GUIDE_MIN_ALPHA: f32 = 0.1;
+pub use crate::material::GUIDE_MIN_ALPHA;
 
-/// Whether the learned integrator mixes its guide into the sampling of `bsdf`: not where
-/// every lobe is delta or near-specular (a glossy lobe narrower than [`GUIDE_MIN_ALPHA`]);
-/// a plastic's diffuse base is always worth guiding.
+/// Whether the learned integrator mixes its guide into the sampling of `bsdf`
+/// ([`crate::material::Bsdf::is_guidable`]).
 #[inline]
 #[must_use]
 pub fn guides_at(bsdf: &crate::material::Bsdf) -> bool {
-    use crate::material::Bsdf;
-    let rough = |r: &Option<crate::material::microfacet::Microfacet>| r.is_some_and(|m| m.alpha >= GUIDE_MIN_ALPHA);
-    match bsdf {
-        Bsdf::Diffuse { .. } | Bsdf::Plastic { .. } => true,
-        Bsdf::Conductor { roughness, .. } => rough(roughness),
-        Bsdf::Dielectric { roughness, thin, .. } => !thin && rough(roughness),
-    }
+    bsdf.is_guidable()
 }
 
 /// How [`sample_mixture`] shares its directions at one vertex (a BSDF and `wi`): worked out

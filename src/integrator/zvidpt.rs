@@ -30,7 +30,7 @@ use crate::film::{PriorSamples, mean_variance};
 use crate::geometry::{Frame, UVec2, Vec3A, luminance, warp};
 use crate::learned_guide::{Deposits, DirectionDensities, LearnedGuide, mixture_pdf};
 use crate::light::Receiver;
-use crate::photon::PhotonMap;
+use crate::photon::{Caustics, PhotonMap};
 use crate::sampler::{Domain, SampleStream, survival_probability};
 use crate::scene::SurfaceInteraction;
 use rayon::prelude::*;
@@ -94,6 +94,10 @@ pub struct LearnedSettings {
     pub control_variate: bool,
     /// Probability of aiming at a cell's learned source box (where it has one).
     pub box_mix: f32,
+    /// Caustic photons traced before training, whose exit points from specular surfaces give
+    /// source boxes for the cells they reached ([`LearnedGuide::add_caustic_sources`]; 0:
+    /// none).
+    pub caustic_photons: usize,
     /// Training samples per pixel in all (iterations 1, 2, 4, … while they fit); `None`: half
     /// the final sample count, or by the time budget's rule under `--time`.
     pub train_spp: Option<u32>,
@@ -143,6 +147,7 @@ impl Default for LearnedSettings {
             max_split: 8,
             control_variate: true,
             box_mix: 0.3,
+            caustic_photons: 10_000,
             train_spp: None,
             mis: Mis::Glossy,
             fallback: true,
@@ -331,6 +336,10 @@ fn defensive_shares(alpha: f32, beta: f32, defensive: f32) -> (f32, f32) {
     let alpha = alpha.min(1.0 - defensive);
     (alpha, beta.min(1.0 - defensive / (1.0 - alpha)).max(0.0))
 }
+
+/// Photon paths traced per caustic photon asked for, at most (a scene whose glass few
+/// photons reach gives up early: caustics that rare are no source worth aiming at).
+const CAUSTIC_PATHS_PER_PHOTON: u64 = 20;
 
 /// Set-up rays per pixel for its reference indirect radiance.
 const SETUP_RAYS: u32 = 4;
@@ -998,12 +1007,18 @@ impl Integrator for LearnedZvidpt {
         let start = Instant::now();
         let map = PhotonMap::build(ctx.scene, ctx.accel, self.settings.photons, seed)?;
         let mut guide = LearnedGuide::seed(ctx.scene, &map, self.settings.knn)?;
+        if self.settings.caustic_photons > 0 {
+            let target = self.settings.caustic_photons;
+            let caustics =
+                Caustics::trace(ctx.scene, ctx.accel, target, CAUSTIC_PATHS_PER_PHOTON * target as u64, seed);
+            guide.add_caustic_sources(&caustics);
+        }
         guide.split_samples = self.settings.split_samples;
         guide.split_moment = self.settings.split_moment;
         guide.set_mix(self.settings.guide_mix);
         guide.learn_mix = self.settings.learn_mix;
         guide.carry = self.settings.guide_carry;
-        guide.box_mix = self.settings.box_mix;
+        guide.set_box_mix(self.settings.box_mix);
         let seeded = start.elapsed().as_secs_f64();
         drop(map);
         self.iterations.clear();

@@ -23,8 +23,8 @@ pub mod quadtree;
 pub mod volume;
 
 use crate::geometry::{Frame, Vec2, Vec3A, warp};
-use crate::photon::PhotonMap;
 use crate::photon::cache::{BUCKETS, bucket_of};
+use crate::photon::{Caustics, PhotonMap};
 use crate::scene::Scene;
 use quadtree::{Forest, from_fixed, to_fixed};
 use rayon::prelude::*;
@@ -53,6 +53,10 @@ const MIN_BOX_SIDE: f32 = 1e-3;
 const MAX_SOURCE_SIDE: f32 = 0.5;
 /// Most source boxes a scene gets.
 pub const MAX_SOURCES: usize = 4;
+/// Buckets per axis of the grid that groups caustic exit points into boxes.
+const CAUSTIC_GRID: u32 = 8;
+/// Most of them that are caustic exits ([`LearnedGuide::add_caustic_sources`]).
+pub const MAX_CAUSTIC_SOURCES: usize = 2;
 /// A cell whose radiance is at least this fraction of the brightest cell's is a source.
 const SOURCE_RADIANCE: f32 = 0.1;
 /// A cell aims at a source box only if it brought it at least this share of its energy.
@@ -83,6 +87,8 @@ pub struct GuideStats {
     pub bytes: usize,
     /// Source boxes, and the cells that aim at one.
     pub sources: usize,
+    /// Of which caustic exits.
+    pub caustic: usize,
     pub aiming: usize,
 }
 
@@ -91,7 +97,11 @@ impl std::fmt::Display for GuideStats {
         write!(f, "{} cells, {} direction nodes, {:.1} MB", self.cells, self.nodes, self.bytes as f64 / 1e6)?;
         if self.sources > 0 {
             let s = if self.sources == 1 { "" } else { "es" };
-            write!(f, "; {} source box{s}, aimed at by {} cells", self.sources, self.aiming)?;
+            write!(f, "; {} source box{s}", self.sources)?;
+            if self.caustic > 0 {
+                write!(f, " ({} of caustics)", self.caustic)?;
+            }
+            write!(f, ", aimed at by {} cells", self.aiming)?;
         }
         Ok(())
     }
@@ -243,6 +253,8 @@ pub struct LearnedGuide {
     box_share: Vec<f32>,
     /// Probability of aiming at a cell's source box (where it has one).
     pub box_mix: f32,
+    /// The first `caustic_boxes` of `sources` are caustic exits.
+    caustic_boxes: usize,
     /// Per cell, summed over iterations: direct RGB, indirect RGB (fixed point), samples.
     sums: Vec<[u64; 7]>,
     /// Per cell: the probability of sampling its tree (the rest: cosine sampling), chosen by
@@ -326,6 +338,7 @@ impl LearnedGuide {
             cell_source: Vec::new(),
             box_share: Vec::new(),
             box_mix: 0.0,
+            caustic_boxes: 0,
             nodes: Vec::new(),
             roots: [0; BUCKETS],
             trees: Forest::default(),
@@ -445,27 +458,40 @@ impl LearnedGuide {
         if !(top > 0.0 && top.is_finite()) {
             return Vec::new();
         }
+        let boxes = spread
+            .iter()
+            .zip(&radiance)
+            .filter(|&(_, &r)| r >= SOURCE_RADIANCE * top)
+            .map(|(s, &r)| {
+                let (lo, hi) = self.spread_box(s);
+                let side = hi - lo;
+                let area = (side.x * side.y).max(side.y * side.z).max(side.z * side.x);
+                (lo, hi, r * area)
+            })
+            .collect();
+        self.merge_boxes(boxes, MAX_SOURCES)
+    }
+
+    /// The box of the points summed in `s` (mean ± √3 standard deviations per axis: a uniform
+    /// box of the same spread), at least [`MIN_BOX_SIDE`] of the extent thick.
+    fn spread_box(&self, s: &Spread) -> (Vec3A, Vec3A) {
         let pad = MIN_BOX_SIDE * self.extent;
-        // (box lo, box hi, strength)
-        let mut boxes: Vec<(Vec3A, Vec3A, f32)> = Vec::new();
-        for (c, s) in spread.iter().enumerate() {
-            if radiance[c] < SOURCE_RADIANCE * top {
-                continue;
-            }
-            let n = s[0] as f64;
-            let (mut lo, mut hi) = (Vec3A::ZERO, Vec3A::ZERO);
-            for a in 0..3 {
-                let mean = from_fixed(s[1 + a]) / n;
-                let sd = (from_fixed(s[4 + a]) / n - mean * mean).max(0.0).sqrt();
-                let half = ((3f64.sqrt() * sd) as f32).max(0.5 * pad);
-                lo[a] = self.origin[a] + mean as f32 - half;
-                hi[a] = self.origin[a] + mean as f32 + half;
-            }
-            let side = hi - lo;
-            let area = (side.x * side.y).max(side.y * side.z).max(side.z * side.x);
-            boxes.push((lo, hi, radiance[c] * area));
+        let n = s[0].max(1) as f64;
+        let (mut lo, mut hi) = (Vec3A::ZERO, Vec3A::ZERO);
+        for a in 0..3 {
+            let mean = from_fixed(s[1 + a]) / n;
+            let sd = (from_fixed(s[4 + a]) / n - mean * mean).max(0.0).sqrt();
+            let half = ((3f64.sqrt() * sd) as f32).max(0.5 * pad);
+            lo[a] = self.origin[a] + mean as f32 - half;
+            hi[a] = self.origin[a] + mean as f32 + half;
         }
-        // Merge boxes that touch (within a percent of the extent) until none do.
+        (lo, hi)
+    }
+
+    /// Boxes `(lo, hi, strength)` that touch (within a percent of the extent) merged until none
+    /// do, those larger than [`MAX_SOURCE_SIDE`] of the extent dropped, the `most` strongest
+    /// kept.
+    fn merge_boxes(&self, mut boxes: Vec<(Vec3A, Vec3A, f32)>, most: usize) -> Vec<SourceBox> {
         let touch = 0.01 * self.extent;
         loop {
             let mut merged = false;
@@ -488,7 +514,73 @@ impl LearnedGuide {
         // everything is equally bright): directions there are the tree's business.
         boxes.retain(|b| (b.1 - b.0).max_element() <= MAX_SOURCE_SIDE * self.extent);
         boxes.sort_by(|a, b| b.2.total_cmp(&a.2));
-        boxes.into_iter().take(MAX_SOURCES).filter_map(|(lo, hi, _)| SourceBox::new(lo, hi)).collect()
+        boxes.into_iter().take(most).filter_map(|(lo, hi, _)| SourceBox::new(lo, hi)).collect()
+    }
+
+    /// Caustic sources: boxes around the points caustic photons came from (a box per bucket
+    /// of a coarse grid holding at least [`MIN_LEAF_PHOTONS`] of them, boxes that touch merged, the
+    /// [`MAX_CAUSTIC_SOURCES`] with the most caustic flux kept), ahead of the bright patches
+    /// (which fill the rest of [`MAX_SOURCES`]). Every cell that received a caustic photon
+    /// through a box aims at the box it received most through, from the first iteration on,
+    /// and keeps it (its share learned by the second moments, down to 0): a caustic brings
+    /// little of a cell's energy yet most of its variance where directions find it rarely,
+    /// so the energy a cell's walks bring from a box, which decides the bright patches, would
+    /// drop it. Returns the number of caustic boxes.
+    pub fn add_caustic_sources(&mut self, caustics: &Caustics) -> usize {
+        let cells = self.cells();
+        // The exit points, bucketed by a grid of CAUSTIC_GRID³ over the scene: a box per
+        // bucket, so that two specular objects lit from the same cell give two boxes (a
+        // receiving cell's own spread would span both).
+        let bucket = |y: Vec3A| {
+            let g = ((y - self.origin) * (CAUSTIC_GRID as f32 / self.extent)).floor();
+            let g = g.clamp(Vec3A::ZERO, Vec3A::splat(CAUSTIC_GRID as f32 - 1.0));
+            (g.x as u32, g.y as u32, g.z as u32)
+        };
+        let mut buckets: std::collections::BTreeMap<(u32, u32, u32), (Spread, f64)> = Default::default();
+        for (y, f) in caustics.from.iter().zip(&caustics.flux) {
+            let b = buckets.entry(bucket(*y)).or_insert(([0; 7], 0.0));
+            add_spread(&mut b.0, *y - self.origin);
+            b.1 += f64::from(f.element_sum());
+        }
+        let boxes = buckets
+            .values()
+            .filter(|(s, _)| s[0] >= u64::from(MIN_LEAF_PHOTONS))
+            .map(|(s, f)| {
+                let (lo, hi) = self.spread_box(s);
+                (lo, hi, *f as f32)
+            })
+            .collect();
+        let found = self.merge_boxes(boxes, MAX_CAUSTIC_SOURCES);
+        if found.is_empty() {
+            return 0;
+        }
+        let mut sources = found.clone();
+        sources.extend(self.sources.iter().copied().take(MAX_SOURCES - found.len()));
+        self.sources = sources;
+        let mut through = vec![[0f64; MAX_CAUSTIC_SOURCES]; cells];
+        for (i, (&p, &n)) in caustics.position.iter().zip(&caustics.normal).enumerate() {
+            let c = self.cell(p, n);
+            if let Some(k) = found.iter().position(|b| b.contains(caustics.from[i])) {
+                through[c][k] += f64::from(caustics.flux[i].element_sum());
+            }
+        }
+        for (source, t) in self.cell_source.iter_mut().zip(&through) {
+            let (k, most) = t.iter().enumerate().fold((0, 0.0), |b, (k, &f)| if f > b.1 { (k, f) } else { b });
+            *source = if most > 0.0 { k as u8 + 1 } else { 0 };
+        }
+        self.caustic_boxes = found.len();
+        found.len()
+    }
+
+    /// Sets the probability of aiming at a source box: cells aimed at one by the photon seed
+    /// start from it.
+    pub fn set_box_mix(&mut self, box_mix: f32) {
+        self.box_mix = box_mix;
+        for (share, &c) in self.box_share.iter_mut().zip(&self.cell_source) {
+            if c != 0 {
+                *share = box_mix;
+            }
+        }
     }
 
     /// Splits every cell whose `spread` count exceeds `limit(cell)`: at the samples' mean along the
@@ -623,6 +715,7 @@ impl LearnedGuide {
                 + self.nodes.len() * std::mem::size_of::<SpatialNode>()
                 + self.cells() * (std::mem::size_of::<CellEstimate>() + 1 + 2 * 7 * 8),
             sources: self.sources.len(),
+            caustic: self.caustic_boxes,
             aiming: (0..self.cells()).filter(|&c| self.source_box(c).is_some() && self.box_share[c] > 0.0).count(),
         }
     }
@@ -826,10 +919,11 @@ impl LearnedGuide {
             }
         }
         let had_box: Vec<bool> = (0..cells).map(|c| self.source_box(c).is_some()).collect();
+        let caustic_boxes = self.caustic_boxes;
         // Each cell aims at the source box that brought it the most energy, if that was at
         // least MIN_SOURCE_SHARE of all it received (from enough directions).
         for ((c, e), n) in self.cell_source.iter_mut().zip(&sources).zip(&spread) {
-            if n[0] < MIN_TREE_SAMPLES || e[MAX_SOURCES] == 0 {
+            if n[0] < MIN_TREE_SAMPLES || e[MAX_SOURCES] == 0 || (*c != 0 && usize::from(*c) <= caustic_boxes) {
                 continue;
             }
             let best = (0..MAX_SOURCES).max_by_key(|&k| (e[k], std::cmp::Reverse(k))).unwrap_or(0);
@@ -1002,6 +1096,33 @@ mod tests {
         assert!(b.contains(Vec3A::new(0.0, 1.0, 0.0)) && b.hi.y - b.lo.y < 0.01, "{b:?}");
         assert!(b.lo.x < -0.25 && b.hi.x > 0.25 && b.lo.z < -0.2 && b.hi.z > 0.2, "{b:?}");
         assert!(b.hi.x - b.lo.x < 1.2 && b.hi.z - b.lo.z < 1.2, "{b:?}");
+    }
+
+    /// On `cornell-materials` the caustic photons give one caustic box, around the glass
+    /// sphere (centre (0.1, −0.65, 0.4), radius 0.35), ahead of the bright patches; the floor
+    /// beneath the sphere, where its caustic lies, aims at it once boxes are on.
+    #[test]
+    fn the_floor_under_the_glass_sphere_aims_at_it() {
+        let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell-materials")).unwrap();
+        let accel = BvhAccel::build(&scene.triangles);
+        let map = PhotonMap::build(&scene, &accel, 6891, 1).unwrap();
+        let mut guide = LearnedGuide::seed(&scene, &map, 50).unwrap();
+        let patches = guide.sources.clone();
+        let caustics = Caustics::trace(&scene, &accel, 10_000, 200_000, 1);
+        assert_eq!(guide.add_caustic_sources(&caustics), 1, "{:?}", guide.sources);
+        let b = guide.sources[0];
+        assert!(b.contains(Vec3A::new(0.1, -0.8, 0.4)), "{b:?}");
+        // Within the sphere's bounds and a little more (a box is its points' mean ± √3
+        // standard deviations, merged with its neighbours').
+        let (lo, hi) = (Vec3A::new(-0.25, -1.0, 0.05), Vec3A::new(0.45, -0.3, 0.75));
+        assert!(b.lo.cmpge(lo - 0.2).all() && b.hi.cmple(hi + 0.2).all(), "{b:?}");
+        // The bright patches follow it.
+        assert_eq!(&guide.sources[1..], &patches[..patches.len().min(MAX_SOURCES - 1)]);
+        let below = guide.cell(Vec3A::new(0.1, -1.0, 0.4), Vec3A::Y);
+        assert_eq!(guide.source_box(below), None, "boxes are off until box_mix is set");
+        guide.set_box_mix(0.3);
+        assert_eq!(guide.source_box(below), Some(&b));
+        assert_eq!(guide.box_share(below), 0.3);
     }
 
     /// The relative second moment is 1 where every direction brings the same, 2 where half

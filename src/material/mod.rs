@@ -78,7 +78,26 @@ pub(super) fn reflect(w: Vec3A, m: Vec3A) -> Vec3A {
     2.0 * w.dot(m) * m - w
 }
 
+/// Roughness below which a glossy lobe is too narrow for a learned density to sample it: a
+/// direction a guide picks almost never falls in a lobe of this width.
+pub const GUIDE_MIN_ALPHA: f32 = 0.1;
+
 impl Bsdf {
+    /// Whether a guided integrator mixes its guide into this BSDF's sampling: not where every
+    /// lobe is delta or near-specular (a glossy lobe narrower than [`GUIDE_MIN_ALPHA`]); a
+    /// plastic's diffuse base is always worth guiding. The others are the specular vertices
+    /// that caustic photons leave from.
+    #[inline]
+    #[must_use]
+    pub fn is_guidable(&self) -> bool {
+        let rough = |r: &Option<microfacet::Microfacet>| r.is_some_and(|m| m.alpha >= GUIDE_MIN_ALPHA);
+        match self {
+            Bsdf::Diffuse { .. } | Bsdf::Plastic { .. } => true,
+            Bsdf::Conductor { roughness, .. } => rough(roughness),
+            Bsdf::Dielectric { roughness, thin, .. } => !thin && rough(roughness),
+        }
+    }
+
     /// A conductor with microfacets `rough` (smooth below [`Microfacet::MIN_ALPHA`]).
     #[must_use]
     pub fn conductor(eta: Vec3A, k: Vec3A, rough: Microfacet) -> Self {
