@@ -518,7 +518,7 @@ impl LearnedGuide {
     }
 
     /// Caustic sources: boxes around the points caustic photons came from (a box per bucket
-    /// of a coarse grid holding at least [`MIN_LEAF_PHOTONS`] of them, boxes that touch merged, the
+    /// of a coarse grid holding at least 8 of them, boxes that touch merged, the
     /// [`MAX_CAUSTIC_SOURCES`] with the most caustic flux kept), ahead of the bright patches
     /// (which fill the rest of [`MAX_SOURCES`]). Every cell that received a caustic photon
     /// through a box aims at the box it received most through, from the first iteration on,
