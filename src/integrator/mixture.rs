@@ -11,16 +11,6 @@ use crate::scene::SurfaceInteraction;
 /// times a Lambertian lobe; the BSDF's sampling follows a glossy lobe).
 pub const BSDF_SHARE: f32 = 0.5;
 
-pub use crate::material::GUIDE_MIN_ALPHA;
-
-/// Whether the learned integrator mixes its guide into the sampling of `bsdf`
-/// ([`crate::material::Bsdf::is_guidable`]).
-#[inline]
-#[must_use]
-pub fn guides_at(bsdf: &crate::material::Bsdf) -> bool {
-    bsdf.is_guidable()
-}
-
 /// How [`sample_mixture`] shares its directions at one vertex (a BSDF and `wi`): worked out
 /// once there and once for NEE's weights, not again for every density.
 #[derive(Clone, Copy, Debug)]

@@ -20,7 +20,7 @@
 //! `--roulette q` uses the paper's `q = L̃1/L̃r` (learned) instead, and `--roulette albedo`
 //! the path tracer's rule: with it, this is PPG-style guided path tracing
 //! (`--integrator jensen --learned-guide on`).
-use super::mixture::{Mixture, guides_at, sample_mixture};
+use super::mixture::{Mixture, sample_mixture};
 use super::path::{Mis, PathTracer};
 use super::seen::{SeenPlan, SeenStats, UNSPLIT, plan, projected_variance, split_seen};
 use super::{Integrator, RenderContext, Scratch, direct_light_against, nee_strategy, power_heuristic, sample_bsdf};
@@ -898,7 +898,7 @@ impl<A: Accel> Walker<'_, A> {
         let cell = guide.cell(si.p, si.n);
         let guide_frame = si.gather_frame(&frame);
         let bsdf = &si.material.bsdf;
-        let guided = guides_at(bsdf) && guide.has_tree(cell);
+        let guided = bsdf.is_guidable() && guide.has_tree(cell);
         let weigh = settings.mis.at(&si.material);
         let direct = if bsdf.is_delta() {
             Vec3A::ZERO
@@ -1007,7 +1007,8 @@ impl Integrator for LearnedZvidpt {
         let start = Instant::now();
         let map = PhotonMap::build(ctx.scene, ctx.accel, self.settings.photons, seed)?;
         let mut guide = LearnedGuide::seed(ctx.scene, &map, self.settings.knn)?;
-        if self.settings.caustic_photons > 0 {
+        // Caustic boxes are source boxes: with `--box-mix 0` nothing aims at them.
+        if self.settings.caustic_photons > 0 && self.settings.box_mix > 0.0 {
             let target = self.settings.caustic_photons;
             let caustics =
                 Caustics::trace(ctx.scene, ctx.accel, target, CAUSTIC_PATHS_PER_PHOTON * target as u64, seed);
