@@ -253,6 +253,11 @@ pub struct PhotonArgs {
     /// lie source boxes that the cells they reached aim at (0: none).
     #[arg(long, default_value_t = 10_000)]
     pub caustic_photons: usize,
+    /// zvidpt: cells that caustic photons reached aim, instead of at the whole caustic box,
+    /// at cones toward where the caustic photons that landed near each shading point left
+    /// the specular surface.
+    #[arg(long, value_enum, default_value_t = Switch::On)]
+    pub caustic_lobes: Switch,
     /// zvidpt: weight-window width s (no roulette or split while the expected contribution
     /// ratio lies in [2/(1+s), 2s/(1+s)]).
     #[arg(long, default_value_t = 5.0)]
@@ -315,6 +320,7 @@ impl PhotonArgs {
             guide_carry: 0.25,
             box_mix: 0.3,
             caustic_photons: 10_000,
+            caustic_lobes: Switch::On,
             window: 5.0,
             max_split: 8,
             roulette_cv: Switch::On,
@@ -338,6 +344,7 @@ impl PhotonArgs {
             guide_carry: self.guide_carry,
             box_mix: self.box_mix,
             caustic_photons: self.caustic_photons,
+            caustic_lobes: self.caustic_lobes == Switch::On,
             roulette,
             window: self.window,
             max_split: self.max_split,
@@ -480,6 +487,7 @@ impl PhotonArgs {
             meta.push("guide_carry", self.guide_carry);
             meta.push("box_mix", self.box_mix);
             meta.push("caustic_photons", self.caustic_photons);
+            meta.push("caustic_lobes", flag_name(self.caustic_lobes));
             meta.push("window", self.window);
             meta.push("max_split", self.max_split);
             meta.push("roulette_cv", flag_name(self.roulette_cv));

@@ -584,6 +584,7 @@ mod tests {
         ("guide-carry", "zvidpt", "0.5"),
         ("box-mix", "zvidpt", "0.1"),
         ("caustic-photons", "zvidpt", "0"),
+        ("caustic-lobes", "zvidpt", "off"),
         ("window", "zvidpt", "3"),
         ("max-split", "zvidpt", "4"),
         ("roulette-cv", "zvidpt", "off"),

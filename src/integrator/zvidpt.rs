@@ -98,6 +98,9 @@ pub struct LearnedSettings {
     /// source boxes for the cells they reached ([`LearnedGuide::add_caustic_sources`]; 0:
     /// none).
     pub caustic_photons: usize,
+    /// Cells that caustic photons reached aim at the caustic lobes of each shading point
+    /// rather than at the whole caustic box ([`LearnedGuide::use_caustic_lobes`]).
+    pub caustic_lobes: bool,
     /// Training samples per pixel in all (iterations 1, 2, 4, … while they fit); `None`: half
     /// the final sample count, or by the time budget's rule under `--time`.
     pub train_spp: Option<u32>,
@@ -148,6 +151,7 @@ impl Default for LearnedSettings {
             control_variate: true,
             box_mix: 0.3,
             caustic_photons: 10_000,
+            caustic_lobes: true,
             train_spp: None,
             mis: Mis::Glossy,
             fallback: true,
@@ -745,7 +749,7 @@ impl<A: Accel> Walker<'_, A> {
         let frame = Frame::from_normal(si.n);
         let cell = guide.cell(si.p, si.n);
         let est = guide.estimate(cell);
-        let source = guide.source_box(cell).copied();
+        let source = guide.aim(cell, si.p, si.n);
         let (alpha, beta) = defensive_shares(
             guide.mix(cell),
             if source.is_some() { guide.box_share(cell) } else { 0.0 },
@@ -1020,6 +1024,7 @@ impl Integrator for LearnedZvidpt {
         guide.learn_mix = self.settings.learn_mix;
         guide.carry = self.settings.guide_carry;
         guide.set_box_mix(self.settings.box_mix);
+        guide.use_caustic_lobes(self.settings.caustic_lobes);
         let seeded = start.elapsed().as_secs_f64();
         drop(map);
         self.iterations.clear();

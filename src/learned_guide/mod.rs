@@ -19,6 +19,7 @@
 //! refined where the previous one found energy. Deposits are fixed-point integers, summed per
 //! worker ([`Deposits`]) and then over workers: integer addition is associative, so what is
 //! learned is bit-identical whatever the thread count and tile order.
+pub mod lobes;
 pub mod quadtree;
 pub mod volume;
 
@@ -26,6 +27,7 @@ use crate::geometry::{Frame, Vec2, Vec3A, warp};
 use crate::photon::cache::{BUCKETS, bucket_of};
 use crate::photon::{Caustics, PhotonMap};
 use crate::scene::Scene;
+use lobes::{CausticLobes, Lobes};
 use quadtree::{Forest, from_fixed, to_fixed};
 use rayon::prelude::*;
 use std::f32::consts::{FRAC_1_PI, PI};
@@ -231,6 +233,37 @@ impl SourceBox {
     }
 }
 
+/// What a cell's walk aims at besides its tree and cosine sampling: a source box, or, in a
+/// cell caustic photons reached, the caustic lobes at the shading point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Aim<'a> {
+    Box(SourceBox),
+    Lobes(Lobes<'a>),
+}
+
+impl Aim<'_> {
+    /// A direction from `x` by `u` (uniform in the unit cube); `None` where there is nothing to
+    /// aim at (the walk then draws no direction: its density counts that).
+    #[inline]
+    #[must_use]
+    pub fn sample(&self, x: Vec3A, u: Vec3A) -> Option<Vec3A> {
+        match self {
+            Aim::Box(b) => b.sample(x, u),
+            Aim::Lobes(l) => l.sample(u),
+        }
+    }
+
+    /// The density per steradian of [`Self::sample`]'s direction `d` (unit) from `x`.
+    #[inline]
+    #[must_use]
+    pub fn pdf(&self, x: Vec3A, d: Vec3A) -> f32 {
+        match self {
+            Aim::Box(b) => b.pdf(x, d),
+            Aim::Lobes(l) => l.pdf(d),
+        }
+    }
+}
+
 pub struct LearnedGuide {
     /// Scene bounds' lower corner (positions in the spread sums are relative to it).
     origin: Vec3A,
@@ -255,6 +288,10 @@ pub struct LearnedGuide {
     pub box_mix: f32,
     /// The first `caustic_boxes` of `sources` are caustic exits.
     caustic_boxes: usize,
+    /// The caustic photons' lobes, which cells aiming at a caustic box aim at instead (where
+    /// in use: [`Self::use_caustic_lobes`]).
+    lobes: Option<CausticLobes>,
+    caustic_lobes: bool,
     /// Per cell, summed over iterations: direct RGB, indirect RGB (fixed point), samples.
     sums: Vec<[u64; 7]>,
     /// Per cell: the probability of sampling its tree (the rest: cosine sampling), chosen by
@@ -339,6 +376,8 @@ impl LearnedGuide {
             box_share: Vec::new(),
             box_mix: 0.0,
             caustic_boxes: 0,
+            lobes: None,
+            caustic_lobes: false,
             nodes: Vec::new(),
             roots: [0; BUCKETS],
             trees: Forest::default(),
@@ -569,7 +608,28 @@ impl LearnedGuide {
             *source = if most > 0.0 { k as u8 + 1 } else { 0 };
         }
         self.caustic_boxes = found.len();
+        self.lobes = CausticLobes::build(caustics, self.origin, self.extent);
         found.len()
+    }
+
+    /// Cells that aim at a caustic box aim at the caustic lobes of their shading point instead
+    /// ([`lobes`]): the part of the specular object that images the light from there.
+    pub fn use_caustic_lobes(&mut self, on: bool) {
+        self.caustic_lobes = on;
+    }
+
+    /// What `cell`'s walk aims at from `x` (normal `n`), if anything: its source box, or the
+    /// caustic lobes at `x` where the box is a caustic one and lobes are in use.
+    #[inline]
+    #[must_use]
+    pub fn aim(&self, cell: usize, x: Vec3A, n: Vec3A) -> Option<Aim<'_>> {
+        let b = self.source_box(cell)?;
+        match &self.lobes {
+            Some(l) if self.caustic_lobes && usize::from(self.cell_source[cell]) <= self.caustic_boxes => {
+                Some(Aim::Lobes(l.at(x, n)))
+            }
+            _ => Some(Aim::Box(*b)),
+        }
     }
 
     /// Sets the probability of aiming at a source box: cells aimed at one by the photon seed
@@ -1123,6 +1183,25 @@ mod tests {
         guide.set_box_mix(0.3);
         assert_eq!(guide.source_box(below), Some(&b));
         assert_eq!(guide.box_share(below), 0.3);
+        // With lobes, the floor just in front of the contact point aims at cones that point up
+        // into the sphere (the light comes down through it); without, at the box.
+        let x = Vec3A::new(0.1, -1.0, 0.5);
+        let at = guide.cell(x, Vec3A::Y);
+        assert_eq!(guide.aim(at, x, Vec3A::Y), guide.source_box(at).map(|b| Aim::Box(*b)));
+        guide.use_caustic_lobes(true);
+        let Some(Aim::Lobes(lobes)) = guide.aim(at, x, Vec3A::Y) else { panic!("no lobes at {x}") };
+        assert!(!lobes.is_empty());
+        let centre = Vec3A::new(0.1, -0.65, 0.4);
+        let mut rng = crate::sampler::SampleStream::in_domain(crate::sampler::Domain::Photon, 3, 0, 0);
+        let hits = (0..1000)
+            .filter(|_| {
+                let d = lobes.sample(Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32())).unwrap();
+                // The ray x + t·d meets the sphere.
+                let t = (centre - x).dot(d);
+                t > 0.0 && (x + d * t - centre).length() < 0.35
+            })
+            .count();
+        assert!(hits > 900, "{hits} of 1000 lobe directions reach the sphere");
     }
 
     /// The relative second moment is 1 where every direction brings the same, 2 where half
