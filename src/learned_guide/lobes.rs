@@ -7,7 +7,7 @@
 //! voxels, and at a shading point each photon of its voxel (at most [`MAX_LOBES`], on the side
 //! its normal faces) gives a cone around the direction that photon came from, a kernel
 //! estimate of the caustic's directions there: each voxel's cones are as wide as its photons'
-//! directions spread about their mean (scaled by [`SPREAD_WIDTH`]). A photon's own direction
+//! directions spread about their mean (1.5 times it). A photon's own direction
 //! carries over to a nearby point better than the direction to its exit point would: light
 //! converging to a caustic behind the receiver shifts its direction with the point by the
 //! point's offset over the distance to that focus, not to the much closer glass. The mixture
