@@ -47,6 +47,18 @@ pub fn uniform_sphere(u: Vec2) -> Vec3A {
     Vec3A::new(r * c, r * s, z)
 }
 
+/// A direction uniform in the cone about +z whose half-angle θ has `1 − cos θ = one_minus_cos`
+/// (given so, not as cos θ, to keep narrow cones exact); density `1 / (2π·one_minus_cos)`.
+#[inline]
+#[must_use]
+pub fn uniform_cone(u: Vec2, one_minus_cos: f32) -> Vec3A {
+    let one_minus_cos = u.x * one_minus_cos;
+    let cos = 1.0 - one_minus_cos;
+    let sin = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
+    let phi = TAU * u.y;
+    Vec3A::new(sin * phi.cos(), sin * phi.sin(), cos)
+}
+
 /// Inverse of [`uniform_sphere`]: the point of the square that maps to unit direction `w`.
 #[inline]
 #[must_use]

@@ -749,13 +749,15 @@ impl<A: Accel> Walker<'_, A> {
         let frame = Frame::from_normal(si.n);
         let cell = guide.cell(si.p, si.n);
         let est = guide.estimate(cell);
-        let source = guide.aim(cell, si.p, si.n);
+        let learning = deposits.is_some();
+        // What the cell aims at, looked up (caustic lobes: a voxel per vertex) only where it is
+        // sampled or its share is being learned.
+        let source = if learning || guide.box_share(cell) > 0.0 { guide.aim(cell, si.p, si.n) } else { None };
         let (alpha, beta) = defensive_shares(
             guide.mix(cell),
             if source.is_some() { guide.box_share(cell) } else { 0.0 },
             settings.defensive,
         );
-        let learning = deposits.is_some();
         let tree = alpha > 0.0 || (learning && guide.has_tree(cell));
         // The source box, sampled first with probability `beta`; else the mixture of the
         // tree (`alpha`) and cosine sampling (at least `defensive` of all directions).

@@ -15,7 +15,7 @@
 //! the walk weighs it like any other component; where a voxel holds no photon there is no lobe
 //! and nothing is drawn from it.
 
-use crate::geometry::{Frame, Vec3A};
+use crate::geometry::{Frame, Vec2, Vec3A, warp};
 use crate::photon::Caustics;
 use std::collections::HashMap;
 use std::f32::consts::PI;
@@ -154,11 +154,7 @@ impl Lobes<'_> {
         }
         let j = ((u.z * self.count as f32) as usize).min(self.count as usize - 1);
         let l = self.kept().nth(j)?;
-        let one_minus_cos = u.x * l.one_minus_cos;
-        let cos = 1.0 - one_minus_cos;
-        let sin = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
-        let phi = 2.0 * PI * u.y;
-        let local = Vec3A::new(sin * phi.cos(), sin * phi.sin(), cos);
+        let local = warp::uniform_cone(Vec2::new(u.x, u.y), l.one_minus_cos);
         Frame::from_normal(l.axis).to_world(local).try_normalize()
     }
 
@@ -215,10 +211,7 @@ mod tests {
         let (mut sum, mut sum_sq) = (0.0f64, 0.0f64);
         for _ in 0..n {
             let (a, b) = (rng.next_2d(), rng.next_f32());
-            let z = 1.0 - 2.0 * a.x;
-            let r = (1.0 - z * z).max(0.0).sqrt();
-            let d = Vec3A::new(r * (2.0 * PI * a.y).cos(), r * (2.0 * PI * a.y).sin(), z);
-            let v = f64::from(4.0 * PI * l.pdf(d));
+            let v = f64::from(4.0 * PI * l.pdf(warp::uniform_sphere(a)));
             sum += v;
             sum_sq += v * v;
             let s = l.sample(Vec3A::new(rng.next_f32(), rng.next_f32(), b)).unwrap();
