@@ -148,7 +148,9 @@ def main():
                 try:
                     line = run([a.zvidpt, "render", f, "--integrator", *integ.split(),
                                 "--time", a.time, "--seed", seed, "--resolution", res, *depth, "-o", img, "--no-png"])
-                    m = re.search(r"(\d+) spp.*?, ([\d.]+) s\b", line.splitlines()[-1])
+                    # The status line: "SCENE WxH, N spp ..., T s, ... -> FILE".
+                    status = next(l for l in line.splitlines() if " -> " in l)
+                    m = re.search(r"(\d+) spp.*?, ([\d.]+) s\b", status)
                     if a.seed_pairs:
                         done.append((seed, img, m))
                         if len(done) < 2:

@@ -6,14 +6,16 @@ mod common;
 use common::cli::*;
 use zvidpt::film::read_exr;
 
-fn split_and_merge(integrator: &str, spp: u32, ranges: &[(u32, u32)]) {
-    let dir = scratch("merge", integrator);
+/// Renders whole and in parts; returns the whole render's output.
+fn split_and_merge(integrator: &str, spp: u32, ranges: &[(u32, u32)]) -> String {
+    let dir = scratch("merge", &format!("{integrator}-{spp}"));
     let scene = format!("{}/scenes/cornell-paper", env!("CARGO_MANIFEST_DIR"));
     let spp_s = spp.to_string();
     let common = ["--integrator", integrator, "--resolution", "40x30", "--seed", "5", "--spp", &spp_s, "-q"];
     let whole = dir.join("whole.exr");
     let o = zvidpt(&[&["render", &scene, "-o", s(&whole), "--no-png"][..], &common[..]].concat());
     assert!(o.status.success(), "{}", text(&o));
+    let said = text(&o);
     let mut parts = Vec::new();
     // Parts render with different thread counts: the pixels must not care.
     for (i, (a, b)) in ranges.iter().enumerate() {
@@ -45,6 +47,7 @@ fn split_and_merge(integrator: &str, spp: u32, ranges: &[(u32, u32)]) {
         assert_eq!(meta.get(key), merged_meta.get(key), "{key}");
     }
     assert_eq!(merged_meta.get("merged_parts"), Some(ranges.len().to_string().as_str()));
+    said
 }
 
 #[test]
@@ -55,6 +58,15 @@ fn path_parts_merge_bit_identically() {
 #[test]
 fn learned_parts_merge_bit_identically() {
     split_and_merge("zvidpt", 8, &[(0, 5), (5, 8)]);
+}
+
+/// With 7 or more training samples per pixel, the learned integrator shares the render's
+/// samples by the training's error: every part takes its pixels' share of its range, and
+/// the counts add up as the whole render's.
+#[test]
+fn learned_parts_with_sample_rates_merge_bit_identically() {
+    let said = split_and_merge("zvidpt", 16, &[(0, 3), (3, 11), (11, 16)]);
+    assert!(said.contains("samples shared by the training's error"), "{said}");
 }
 
 #[test]

@@ -3,7 +3,9 @@
 use crate::accel::BackendKind;
 use crate::film::{self, Image, Metadata};
 pub use crate::integrator::IntegratorKind;
-use crate::integrator::{Estimator, GuideSettings, IntegratorSettings, LearnedSettings, MAX_SUBPIXELS, Mis, Roulette};
+use crate::integrator::{
+    Allocation, Estimator, GuideSettings, IntegratorSettings, LearnedSettings, MAX_SUBPIXELS, Mis, Roulette,
+};
 use crate::light::LightSampling;
 use crate::photon::{GridShape, GuidePhotons, MAX_GUIDE_CELLS};
 use crate::render::{RenderSettings, RenderStats, render_scene, render_scene_with_aovs};
@@ -289,6 +291,12 @@ pub struct PhotonArgs {
     /// extra camera rays per sample, chosen per pixel from the training (1: off).
     #[arg(long, default_value_t = 8)]
     pub seen_strata: u8,
+    /// zvidpt and jensen --learned-guide on: share the render's samples among the pixels in
+    /// proportion to the per-sample standard deviation the training measured around each
+    /// (from its neighbours, never its own samples: unbiased), floored at a tenth of the
+    /// mean; or give every pixel the same count. --spp is then the mean count.
+    #[arg(long, value_enum, default_value_t = Allocation::Error)]
+    pub allocation: Allocation,
     /// jensen: guide with the learned importance function (PPG-style guided path tracing)
     /// instead of the photon grid.
     #[arg(long, value_enum, default_value_t = Switch::Off)]
@@ -328,6 +336,7 @@ impl PhotonArgs {
             min_survival: 0.2,
             defensive: 0.0,
             seen_strata: 8,
+            allocation: Allocation::Error,
             learned_guide: Switch::Off,
         }
     }
@@ -353,6 +362,7 @@ impl PhotonArgs {
             min_survival: self.min_survival,
             defensive: self.defensive,
             seen_strata: self.seen_strata,
+            allocation: self.allocation,
             train_spp: self.train_spp,
             mis: self.mis,
         }
@@ -496,6 +506,7 @@ impl PhotonArgs {
             meta.push("min_survival", self.min_survival);
             meta.push("defensive", self.defensive);
             meta.push("seen_strata", self.seen_strata);
+            meta.push("allocation", flag_name(self.allocation));
         }
     }
 }

@@ -434,7 +434,13 @@ pub fn run_render(args: &RenderArgs) -> Result<RenderStats> {
             );
         }
         if let Some((lo, mean, hi)) = stats.pixel_spp {
-            out!("adaptive sampling: {mean:.1} samples per pixel on average (fewest {lo}, most {hi}; layer spp)");
+            if args.adaptive {
+                out!("adaptive sampling: {mean:.1} samples per pixel on average (fewest {lo}, most {hi}; layer spp)");
+            } else {
+                out!(
+                    "samples shared by the training's error (--allocation): {mean:.1} per pixel on average (fewest {lo}, most {hi}; layer spp)"
+                );
+            }
         }
         if let Some(d) = &denoised {
             out!(
@@ -585,6 +591,7 @@ mod tests {
         ("box-mix", "zvidpt", "0.1"),
         ("caustic-photons", "zvidpt", "0"),
         ("caustic-lobes", "zvidpt", "off"),
+        ("allocation", "zvidpt", "uniform"),
         ("window", "zvidpt", "3"),
         ("max-split", "zvidpt", "4"),
         ("roulette-cv", "zvidpt", "off"),

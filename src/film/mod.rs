@@ -1,11 +1,13 @@
 //! Images: float RGB with optional per-pixel sample variance, EXR (with render metadata) and
-//! PNG output written atomically, and the error metrics of ALGORITHM.md §6.
+//! PNG output written atomically, the error metrics of ALGORITHM.md §6, and how a render's
+//! samples are shared among its pixels ([`rates`]).
 mod atomic;
 mod exr_io;
 mod metrics;
 mod partial;
 mod passes;
 mod png_out;
+pub mod rates;
 mod sums;
 
 pub use atomic::{

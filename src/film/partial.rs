@@ -260,7 +260,9 @@ pub fn parse_partial(bytes: &[u8], path: &Path) -> Result<(Partial, Metadata)> {
             return Err(bad(path, "per-pixel counts"));
         }
         counts = rest.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
-        if counts.iter().any(|&c| c > spp) {
+        // Adaptive sampling's counts are at most spp; sample rates' at most MAX_PIXEL_RATE × it.
+        let most = (f64::from(spp) * f64::from(crate::film::rates::MAX_PIXEL_RATE)).ceil() as u64;
+        if counts.iter().any(|&c| u64::from(c) > most) {
             return Err(bad(path, "per-pixel counts"));
         }
         b = &[];
@@ -340,8 +342,9 @@ mod tests {
         assert!(parse_partial(&longer, &path).is_err());
     }
 
-    /// Per-pixel sample counts (adaptive sampling) come back as written; a count above the
-    /// file's samples per pixel, or counts cut short, are refused; `merge` refuses them.
+    /// Per-pixel sample counts (sample rates) come back as written; a count above
+    /// `MAX_PIXEL_RATE` times the file's samples per pixel, or counts cut short, are refused;
+    /// `merge` adds them up (a part without counts: its samples per pixel in every pixel).
     #[test]
     fn per_pixel_counts_round_trip() {
         let dir = std::env::temp_dir().join(format!("zvidpt-partial-counts-{}", std::process::id()));
@@ -351,8 +354,11 @@ mod tests {
         p.sums.counts = vec![5, 2, 3, 5, 0, 4];
         super::super::commit(vec![stage_partial(&path, &p, &Metadata::default()).unwrap()]).unwrap();
         assert_eq!(read_partial(&path).unwrap().0, p);
-        assert!(Partial::merge(vec![p.clone()]).unwrap_err().to_string().contains("per-pixel"));
-        for (counts, what) in [(vec![5, 2, 3, 5, 0, 6], "above spp"), (vec![5, 2, 3], "short")] {
+        let mut q = part(5, 5);
+        q.sums.counts = vec![9, 0, 1, 5, 2, 48];
+        assert_eq!(Partial::merge(vec![q.clone(), p.clone()]).unwrap().sums.counts, vec![14, 2, 4, 10, 2, 52]);
+        assert_eq!(Partial::merge(vec![part(5, 5), p.clone()]).unwrap().sums.counts, vec![10, 7, 8, 10, 5, 9]);
+        for (counts, what) in [(vec![5, 2, 3, 5, 0, 81], "above 16 spp"), (vec![5, 2, 3], "short")] {
             let mut bad = p.clone();
             bad.sums.counts = counts;
             let s = &bad.sums;

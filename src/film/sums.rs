@@ -120,11 +120,6 @@ impl Partial {
         let Some(head) = parts.first() else {
             return Err(Error::InvalidOption("no parts to merge".into()));
         };
-        if parts.iter().any(|p| !p.sums.counts.is_empty()) {
-            return Err(Error::InvalidOption(
-                "a part with per-pixel sample counts (adaptive sampling) cannot be merged".into(),
-            ));
-        }
         let (width, height, total) = (head.sums.width, head.sums.height, head.total_spp);
         let mut next = 0u32;
         for p in &parts {
@@ -149,6 +144,16 @@ impl Partial {
         if next != total {
             return Err(Error::InvalidOption(format!("samples {next}..{total} are in no part")));
         }
+        // Per-pixel counts (sample rates: each part took its pixels' share of its range) add up.
+        let counts = if parts.iter().any(|p| !p.sums.counts.is_empty()) {
+            let n = parts[0].sums.sum.len();
+            if parts.iter().any(|p| !p.sums.counts.is_empty() && p.sums.counts.len() != n) {
+                return Err(Error::InvalidOption("parts differ in their per-pixel counts".into()));
+            }
+            (0..n).map(|j| parts.iter().map(|p| p.sums.count(j)).fold(0u32, u32::saturating_add)).collect()
+        } else {
+            Vec::new()
+        };
         let mut merged = parts.swap_remove(0);
         let add = |into: &mut [[i128; 3]], from: &[[i128; 3]]| {
             for (acc, v) in into.iter_mut().zip(from) {
@@ -161,6 +166,7 @@ impl Partial {
         }
         merged.first = 0;
         merged.sums.spp = total;
+        merged.sums.counts = counts;
         Ok(merged)
     }
 

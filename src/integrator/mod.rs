@@ -19,7 +19,7 @@ pub use jensen::Jensen;
 pub use path::{Mis, PathTracer};
 pub use photon_guided::GuideSettings;
 pub use volume_guided::GuidedVolume;
-pub use zvidpt::{LearnedSettings, LearnedZvidpt, PixelSetup, Roulette};
+pub use zvidpt::{Allocation, LearnedSettings, LearnedZvidpt, PixelSetup, Roulette};
 pub use zvidpt_paper::{Estimator, MAX_SUBPIXELS, Zvidpt};
 
 use crate::accel::Accel;
@@ -97,6 +97,13 @@ pub trait Integrator: Sync + Send {
     /// distribution), to be averaged into the image with the render's own: per-sample weights
     /// all equal, never chosen from the samples' values. `None` for most integrators.
     fn prior_samples(&self) -> Option<&PriorSamples> {
+        None
+    }
+
+    /// Each pixel's sample rate (row-major, mean 1; [`crate::film::rates`]) for the
+    /// render's samples, as the pre-pass measured where the image's error lies; `None`: every
+    /// pixel alike. A pixel's rate must not depend on its own pre-pass samples.
+    fn pixel_rates(&self) -> Option<&[f32]> {
         None
     }
 

@@ -19,8 +19,8 @@ use super::path::PathTracer;
 use super::seen::{SeenPlan, SeenStats, UNSPLIT, plan, plan_from_projection, projected_variance, split_seen};
 use super::volume::{Guidance, trace_volume_path};
 use super::zvidpt::{
-    Iteration, LearnedSettings, MIN_TRAINING_SPP, PROBE_SPP, PixelSums, add_sample, add_training_sample, gather_rows,
-    iteration_fits, probe_lattice, training_budget,
+    Allocation, Iteration, LearnedSettings, MIN_TRAINING_SPP, PROBE_SPP, PixelSums, Pooled, TrainingSums, add_sample,
+    add_training_sample, gather_rows, iteration_fits, probe_lattice, training_budget,
 };
 use super::{Integrator, RenderContext, Scratch};
 use crate::Result;
@@ -53,22 +53,30 @@ pub struct GuidedVolume {
     pub fell_back: bool,
     /// Where the seen light is split over the pixel, and how finely (after training).
     seen: Option<SeenPlan>,
+    /// Each pixel's sample rate for the render (as the surface walk's: `allocation`).
+    rates: Option<Vec<f32>>,
 }
 
 /// What one training iteration returns.
 struct Pass {
     deposits: VolumeDeposits,
-    sum: Vec<[f64; 3]>,
-    sum_sq: Vec<[f64; 3]>,
-    seen: Vec<[f64; 5]>,
-    rays: u64,
+    sums: TrainingSums,
 }
 
 impl GuidedVolume {
     /// The walk with these settings, before training.
     #[must_use]
     pub fn new(settings: LearnedSettings) -> Self {
-        Self { settings, guide: None, iterations: Vec::new(), prior: None, probe: None, fell_back: false, seen: None }
+        Self {
+            settings,
+            guide: None,
+            iterations: Vec::new(),
+            prior: None,
+            probe: None,
+            fell_back: false,
+            seen: None,
+            rates: None,
+        }
     }
 
     /// Training samples per pixel so far (iterations of 2^k spp).
@@ -117,6 +125,7 @@ impl GuidedVolume {
                             let apart = strata > UNSPLIT;
                             for s in spp..2 * spp {
                                 let mut rng = SampleStream::new(seed, y * width + x, s);
+                                let rays_before = scratch.rays;
                                 let guidance =
                                     Guidance { guide: Some(guide), deposits: Some(&mut deposits), seen_apart: apart };
                                 let walk = self.walk(ctx, pixel, &mut rng, &mut scratch, guidance);
@@ -134,7 +143,8 @@ impl GuidedVolume {
                                     (Vec3A::ZERO, 0.0, Vec3A::ZERO)
                                 };
                                 let rest = f64::from(walk.element_sum()) - if apart { 0.0 } else { seen };
-                                add_training_sample(&mut sums, v, seen, rest, scratch.seen_rays);
+                                let rays = scratch.rays - rays_before;
+                                add_training_sample(&mut sums, v, seen, rest, (scratch.seen_rays, rays));
                             }
                             sums
                         })
@@ -151,8 +161,7 @@ impl GuidedVolume {
                 },
             );
         rows.sort_unstable_by_key(|r| r.0);
-        let (sum, sum_sq, seen, rays) = gather_rows(rows);
-        Pass { deposits, sum, sum_sq, seen, rays }
+        Pass { deposits, sums: gather_rows(rows) }
     }
 
     /// Mean per-sample variance and rays per sample of a walk over the probe lattice
@@ -197,6 +206,7 @@ impl Integrator for GuidedVolume {
         let mut prior = PriorSamples::new(width, height);
         let mut rays = 0u64;
         let mut seen_stats = SeenStats::default();
+        let mut pooled = Pooled::new(self.settings.allocation == Allocation::Error, (width * height) as usize);
         self.seen = None;
         // Pixels where a light smaller than the pixel projects are split from the first
         // training pass (a plan from the scene's geometry alone, so the training samples stay
@@ -216,9 +226,10 @@ impl Integrator for GuidedVolume {
             guide.begin_iteration();
             let pass = self.train_pass(ctx, &guide, early.as_ref(), seed, spp);
             guide.end_iteration(k, pass.deposits)?;
-            prior.add_pass(spp, &pass.sum, &pass.sum_sq);
-            rays += pass.rays;
-            seen_stats.add(spp, &pass.seen, pass.rays);
+            prior.add_pass(spp, &pass.sums.sum, &pass.sums.sum_sq);
+            rays += pass.sums.rays;
+            seen_stats.add(spp, &pass.sums.seen, pass.sums.rays);
+            pooled.add(spp, &pass.sums);
             self.iterations.push(Iteration { spp, seconds: t.elapsed().as_secs_f64() });
         }
         // The choice, with the guide the render would sample.
@@ -235,6 +246,8 @@ impl Integrator for GuidedVolume {
             let cost = seen_stats.rays as f64 / samples.max(1.0);
             self.seen = Some(plan(width, &seen_stats, &projected, cost, self.settings.seen_strata));
         }
+        self.rates = pooled.rates(width, height);
+        drop(pooled);
         self.prior = (!prior.is_empty()).then_some(prior);
         let seen = match self.seen.as_ref().map(SeenPlan::split_pixels) {
             Some((n, m)) if n > 0 => {
@@ -271,12 +284,16 @@ impl Integrator for GuidedVolume {
         self.prior.as_ref()
     }
 
+    fn pixel_rates(&self) -> Option<&[f32]> {
+        self.rates.as_deref()
+    }
+
     fn training_iterations(&self) -> Option<u32> {
         Some(self.iterations.len() as u32)
     }
 
     fn bytes_per_pixel(&self) -> u64 {
-        272
+        272 + 52
     }
 
     fn first_sample_index(&self) -> u32 {

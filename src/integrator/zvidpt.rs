@@ -133,7 +133,25 @@ pub struct LearnedSettings {
     /// prefix again, each pixel's count chosen from the training's measurements and the
     /// lights' projection.
     pub seen_strata: u8,
+    /// How the render's samples are shared among the pixels: each pixel's rate from the
+    /// training's variance around it ([`crate::film::rates`]), or every pixel alike.
+    pub allocation: Allocation,
 }
+
+/// How a learned render shares its samples among the pixels.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Allocation {
+    /// In proportion to the per-sample standard deviation the training measured around each
+    /// pixel (its other-parity neighbours within 5 pixels): least MSE for the samples.
+    #[default]
+    Error,
+    /// The same samples for every pixel.
+    Uniform,
+}
+
+/// Training samples per pixel below which the training's variances are too few to share the
+/// render's samples by.
+const MIN_ALLOCATION_SPP: u32 = 7;
 
 impl Default for LearnedSettings {
     fn default() -> Self {
@@ -158,6 +176,7 @@ impl Default for LearnedSettings {
             min_survival: 0.2,
             defensive: 0.0,
             seen_strata: 8,
+            allocation: Allocation::Error,
         }
     }
 }
@@ -192,6 +211,8 @@ pub struct LearnedZvidpt {
     split: bool,
     /// Where the seen light is split over the pixel, and how finely (after training).
     seen: Option<SeenPlan>,
+    /// Each pixel's sample rate for the render ([`Allocation::Error`]).
+    rates: Option<Vec<f32>>,
 }
 
 /// What the learned integrator keeps per pixel: the weight window's reference and the
@@ -361,6 +382,7 @@ impl LearnedZvidpt {
             path: None,
             split: true,
             seen: None,
+            rates: None,
         }
     }
 
@@ -466,6 +488,7 @@ impl LearnedZvidpt {
                         for s in spp..2 * spp {
                             let mut rng = SampleStream::new(seed, y * width + x, s);
                             scratch.seen = Vec3A::ZERO;
+                            let rays_before = scratch.rays;
                             let v = walker.camera_sample(
                                 pixel,
                                 reference,
@@ -480,7 +503,8 @@ impl LearnedZvidpt {
                                 (Vec3A::ZERO, 0.0)
                             };
                             let rest = f64::from(v.element_sum()) - seen;
-                            add_training_sample(&mut sums, v, seen, rest, scratch.seen_rays);
+                            let rays = scratch.rays - rays_before;
+                            add_training_sample(&mut sums, v, seen, rest, (scratch.seen_rays, rays));
                         }
                         row.push(sums);
                     }
@@ -496,8 +520,7 @@ impl LearnedZvidpt {
                 },
             );
         rows.sort_unstable_by_key(|r| r.0);
-        let (sum, sum_sq, seen, rays) = gather_rows(rows);
-        TrainPass { deposits, sum, sum_sq, seen, rays }
+        TrainPass { deposits, sums: gather_rows(rows) }
     }
 
     /// Probes both walks (the path tracer's once, kept in `path_probe`) and records the
@@ -572,15 +595,17 @@ impl LearnedZvidpt {
     }
 }
 
-/// One pixel's sums over a training pass: of its samples per channel, of their squares, and
-/// the parts of [`SeenStats`] (seen, seen², rest, rest², rays of the delta prefix).
-pub(crate) type PixelSums = ([f64; 3], [f64; 3], [f64; 5]);
+/// One pixel's sums over a training pass: of its samples per channel, of their squares, the
+/// parts of [`SeenStats`] (seen, seen², rest, rest², rays of the delta prefix), and the rays
+/// its samples traced.
+pub(crate) type PixelSums = ([f64; 3], [f64; 3], [f64; 5], f64);
 
 /// Adds training sample `v`, of seen light `seen` and rest `rest` (channels summed) after
-/// `seen_rays` rays of its delta prefix, to its pixel's sums.
+/// `seen_rays` rays of its delta prefix and `rays` in all, to its pixel's sums.
 #[inline]
-pub(crate) fn add_training_sample(p: &mut PixelSums, v: Vec3A, seen: f64, rest: f64, seen_rays: u32) {
+pub(crate) fn add_training_sample(p: &mut PixelSums, v: Vec3A, seen: f64, rest: f64, (seen_rays, rays): (u32, u64)) {
     add_sample(&mut p.0, &mut p.1, v);
+    p.3 += rays as f64;
     let parts = &mut p.2;
     parts[0] += seen;
     parts[1] += seen * seen;
@@ -590,20 +615,76 @@ pub(crate) fn add_training_sample(p: &mut PixelSums, v: Vec3A, seen: f64, rest: 
 }
 
 /// A training pass's rows (row index, its pixels' sums, its rays), sorted by row: every
-/// pixel's sums, sums of squares and seen parts in row-major order, and the rays in all.
+/// pixel's sums, sums of squares, seen parts and rays in row-major order, and the rays in all.
 pub(crate) fn gather_rows(rows: Vec<(u32, Vec<PixelSums>, u64)>) -> TrainingSums {
     let rays = rows.iter().map(|r| r.2).sum();
-    let (mut sum, mut sum_sq, mut seen) = (Vec::new(), Vec::new(), Vec::new());
-    for (a, b, c) in rows.into_iter().flat_map(|r| r.1) {
+    let (mut sum, mut sum_sq, mut seen, mut cost) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for (a, b, c, d) in rows.into_iter().flat_map(|r| r.1) {
         sum.push(a);
         sum_sq.push(b);
         seen.push(c);
+        cost.push(d);
     }
-    (sum, sum_sq, seen, rays)
+    TrainingSums { sum, sum_sq, seen, cost, rays }
 }
 
-/// What [`gather_rows`] returns.
-pub(crate) type TrainingSums = (Vec<[f64; 3]>, Vec<[f64; 3]>, Vec<[f64; 5]>, u64);
+/// What [`gather_rows`] returns: per pixel (row-major) the sums of samples, of their squares,
+/// the seen parts and the rays traced; and the rays in all.
+pub(crate) struct TrainingSums {
+    pub sum: Vec<[f64; 3]>,
+    pub sum_sq: Vec<[f64; 3]>,
+    pub seen: Vec<[f64; 5]>,
+    pub cost: Vec<f64>,
+    pub rays: u64,
+}
+
+/// Every training sample's sums per pixel (all passes together), for the sample rates that
+/// share the render's samples ([`Allocation::Error`]).
+pub(crate) struct Pooled {
+    spp: u32,
+    /// Per pixel: sums of samples and of their squares per channel, and rays traced.
+    sums: Vec<([f64; 3], [f64; 3], f64)>,
+}
+
+impl Pooled {
+    /// Pooled sums of `pixels` pixels, kept only `on`.
+    pub(crate) fn new(on: bool, pixels: usize) -> Self {
+        Self { spp: 0, sums: if on { vec![([0.0; 3], [0.0; 3], 0.0); pixels] } else { Vec::new() } }
+    }
+
+    /// Adds a training pass of `spp` samples per pixel.
+    pub(crate) fn add(&mut self, spp: u32, pass: &TrainingSums) {
+        if self.sums.len() != pass.sum.len() {
+            return;
+        }
+        for (p, ((s, q), c)) in self.sums.iter_mut().zip(pass.sum.iter().zip(&pass.sum_sq).zip(&pass.cost)) {
+            for k in 0..3 {
+                p.0[k] += s[k];
+                p.1[k] += q[k];
+            }
+            p.2 += c;
+        }
+        self.spp += spp;
+    }
+
+    /// Each pixel's sample rate ([`crate::film::rates`]) from its neighbours' per-sample
+    /// variances (channels averaged) and rays per sample; `None` below
+    /// [`MIN_ALLOCATION_SPP`] training samples per pixel or without sums.
+    pub(crate) fn rates(&self, width: u32, height: u32) -> Option<Vec<f32>> {
+        if self.sums.is_empty() || self.spp < MIN_ALLOCATION_SPP {
+            return None;
+        }
+        let n = f64::from(self.spp);
+        let variance: Vec<f64> = self
+            .sums
+            .iter()
+            .map(|(s, q, _)| (0..3).map(|c| ((q[c] - s[c] * s[c] / n) / (n - 1.0)).max(0.0)).sum::<f64>() / 3.0)
+            .collect();
+        // Rays per sample, at least the camera ray.
+        let cost: Vec<f64> = self.sums.iter().map(|p| (p.2 / n).max(1.0)).collect();
+        crate::film::rates::pixel_rates(width, height, &variance, Some(&cost))
+    }
+}
 
 /// Adds sample `v` to a pixel's per-channel sums and sums of squares.
 #[inline]
@@ -661,11 +742,9 @@ fn found_environment<A: Accel>(ctx: &RenderContext<A>, dir: Vec3A, pdf: f32) -> 
 /// What one training iteration returns ([`LearnedZvidpt::train_pass`]).
 struct TrainPass {
     deposits: Deposits,
-    sum: Vec<[f64; 3]>,
-    sum_sq: Vec<[f64; 3]>,
-    seen: Vec<[f64; 5]>,
-    /// Rays the walks traced, the pixels' set-up rays left out.
-    rays: u64,
+    /// Its samples' sums per pixel; the rays the walks traced, the pixels' set-up rays left
+    /// out.
+    sums: TrainingSums,
 }
 
 /// What a learned walk carries from vertex to vertex.
@@ -1042,6 +1121,10 @@ impl Integrator for LearnedZvidpt {
         let mut path_probe = None;
         let mut seen_stats = SeenStats::default();
         self.seen = None;
+        self.rates = None;
+        // Every training sample's sums per pixel, for the variances that share the render's
+        // samples ([`Allocation::Error`]).
+        let mut pooled = Pooled::new(self.settings.allocation == Allocation::Error, (width * height) as usize);
         let path = PathTracer { mis: self.settings.mis, ..PathTracer::default() };
         for k in 0..16u32 {
             let spp = 1u32 << k;
@@ -1052,8 +1135,9 @@ impl Integrator for LearnedZvidpt {
             guide.begin_iteration();
             let pass = self.train_pass(ctx, &guide, seed, spp);
             guide.end_iteration(k, pass.deposits)?;
-            prior.add_pass(spp, &pass.sum, &pass.sum_sq);
-            seen_stats.add(spp, &pass.seen, pass.rays);
+            prior.add_pass(spp, &pass.sums.sum, &pass.sums.sum_sq);
+            pooled.add(spp, &pass.sums);
+            seen_stats.add(spp, &pass.sums.seen, pass.sums.rays);
             self.iterations.push(Iteration { spp, seconds: t.elapsed().as_secs_f64() });
             // The first judgement, as soon as the guide has its minimum training: a walk that
             // loses clearly stops the training there. A walk that loses by less is judged
@@ -1097,6 +1181,10 @@ impl Integrator for LearnedZvidpt {
             let projected = projected_variance(ctx);
             self.seen = Some(plan(width, &seen_stats, &projected, cost, self.settings.seen_strata));
         }
+        // Each pixel's share of the render's samples, from the per-sample variances the
+        // training measured around it.
+        self.rates = pooled.rates(width, height);
+        drop(pooled);
         // The last pass stays unweighed: the image weighs it against the final passes.
         self.prior = (!prior.is_empty()).then_some(prior);
         let stats = guide.stats();
@@ -1139,14 +1227,19 @@ impl Integrator for LearnedZvidpt {
         self.prior.as_ref()
     }
 
+    fn pixel_rates(&self) -> Option<&[f32]> {
+        self.rates.as_deref()
+    }
+
     fn training_iterations(&self) -> Option<u32> {
         Some(self.iterations.len() as u32)
     }
 
     /// With the training passes' sums and their combination: 256 measured where `path`
-    /// measured 114 ([`Integrator::bytes_per_pixel`]), counted with the same margin.
+    /// measured 114 ([`Integrator::bytes_per_pixel`]), counted with the same margin; and the
+    /// training's pooled sums and the sample rates (52).
     fn bytes_per_pixel(&self) -> u64 {
-        272
+        272 + 52
     }
 
     /// Training iteration k took samples 2^k .. 2^(k+1); the render continues the sequence.

@@ -9,7 +9,7 @@ pub mod interrupt;
 mod scene;
 
 use crate::accel::Accel;
-use crate::film::{Image, Partial, PixelSums, add_fixed, finish_counted, finish_pixel, to_fixed};
+use crate::film::{Image, Partial, PixelSums, add_fixed, finish_counted, finish_pixel, rates, to_fixed};
 use crate::geometry::{UVec2, Vec3A};
 use crate::integrator::{Integrator, RenderContext, Scratch};
 use crate::light::LightSampling;
@@ -240,6 +240,9 @@ struct Tile<S> {
     count: Vec<u32>,
     /// Whether each pixel takes samples in the next pass (adaptive sampling stops some).
     active: Vec<bool>,
+    /// Each pixel's sample rate ([`rates`]; empty: one sample per pixel per sample of the
+    /// render).
+    rate: Vec<f32>,
     state: Vec<S>,
     scratch: Scratch,
 }
@@ -258,7 +261,9 @@ impl<S: Send + Sync> Tile<S> {
         integrator: &I,
         seed: u64,
         width: u32,
-        first: u32,
+        // The pixels' next sample index without rates; the render's first sample index and
+        // its samples per pixel done so far, for rates.
+        (first, offset, done): (u32, u32, u32),
         count: u32,
     ) {
         let mut scratch = std::mem::take(&mut self.scratch);
@@ -269,8 +274,19 @@ impl<S: Send + Sync> Tile<S> {
                     continue;
                 }
                 let pixel = self.origin + UVec2::new(x, y);
-                // Pixel samples are numbered on from the ones it took.
-                let start = first + self.count[i];
+                let (start, count) = match self.rate.get(i) {
+                    // With rates, the render's samples `done..done + count` are the pixel's
+                    // `⌊done·r⌋..⌊(done + count)·r⌋` (the caller keeps them within u32).
+                    Some(&r) => {
+                        let (a, b) = (rates::taken(done, r), rates::taken(done + count, r));
+                        (offset + a as u32, (b - a) as u32)
+                    }
+                    // Pixel samples are numbered on from the ones it took.
+                    None => (first + self.count[i], count),
+                };
+                if count == 0 {
+                    continue;
+                }
                 self.count[i] += count;
                 let job =
                     PixelJob { ctx, integrator, pixel, state: &self.state[i], seed, index: pixel.y * width + pixel.x };
@@ -456,12 +472,24 @@ fn render_in_pool<A: Accel, I: Integrator>(
     drop(marked);
     let prepass_seconds = start.elapsed().as_secs_f64();
     let integrator: &I = integrator;
+    let per_pixel = settings.noise_target.is_some_and(|t| t.per_pixel);
+    // Sample rates per pixel, where the integrator measured them (adaptive sampling decides
+    // its own counts instead).
+    let rates = integrator.pixel_rates().filter(|_| !per_pixel);
+    if rates.is_some_and(|r| {
+        r.len() != (width * height) as usize || r.iter().any(|&x| !(x > 0.0 && x <= rates::MAX_PIXEL_RATE))
+    }) {
+        return Err(Error::InvalidOption("pre-pass sample rates do not match the image".into()));
+    }
     let ts = settings.tile_size;
     let mut tiles: Vec<Tile<I::PixelState>> = Vec::new();
     for ty in (0..height).step_by(ts as usize) {
         for tx in (0..width).step_by(ts as usize) {
             let size = UVec2::new(ts.min(width - tx), ts.min(height - ty));
             let n = (size.x * size.y) as usize;
+            let rate = rates.map_or_else(Vec::new, |r| {
+                (0..size.y).flat_map(|y| (0..size.x).map(move |x| r[((ty + y) * width + tx + x) as usize])).collect()
+            });
             tiles.push(Tile {
                 origin: UVec2::new(tx, ty),
                 size,
@@ -469,6 +497,7 @@ fn render_in_pool<A: Accel, I: Integrator>(
                 sum_sq: vec![[0; 3]; n],
                 count: vec![0; n],
                 active: vec![true; n],
+                rate,
                 state: Vec::new(),
                 scratch: Scratch::default(),
             });
@@ -502,7 +531,7 @@ fn render_in_pool<A: Accel, I: Integrator>(
             return Err(Error::InvalidOption(format!("{}: the checkpoint holds more samples", c.path.display())));
         }
         let sums = &r.part.sums;
-        if !sums.counts.is_empty() && !settings.noise_target.is_some_and(|t| t.per_pixel) {
+        if !sums.counts.is_empty() && !per_pixel && rates.is_none() {
             return Err(Error::InvalidOption(format!(
                 "{}: the checkpoint has per-pixel sample counts (adaptive sampling); resume it with --adaptive",
                 c.path.display()
@@ -518,7 +547,8 @@ fn render_in_pool<A: Accel, I: Integrator>(
         done += sums.spp;
     }
     let resumed_spp = done - first;
-    let per_pixel = settings.noise_target.is_some_and(|t| t.per_pixel);
+    // Pixels keep their own counts: adaptive sampling's, or the rates'.
+    let counted = per_pixel || rates.is_some();
     let taken = |tiles: &[Tile<I::PixelState>]| tiles.iter().flat_map(|t| &t.count).map(|&c| u64::from(c)).sum::<u64>();
     let resumed_samples = taken(&tiles);
     let bar = progress_bar(settings);
@@ -545,7 +575,7 @@ fn render_in_pool<A: Accel, I: Integrator>(
             seconds: resumed_seconds + budget_seconds(),
             training_iterations: integrator.training_iterations(),
         };
-        let counts = per_pixel.then(|| row_major(tiles, width, height, |t, i| t.count[i]));
+        let counts = counted.then(|| row_major(tiles, width, height, |t, i| t.count[i]));
         checkpoint::write(
             c,
             (width, height),
@@ -617,12 +647,18 @@ fn render_in_pool<A: Accel, I: Integrator>(
             let share = (pass as usize * (width * height) as usize / active).min(u32::MAX as usize) as u32;
             pass = pass.max(share.min((done - first) / 16)).min(remaining);
         }
-        if done.checked_add(offset + pass).is_none() {
+        // Sample indices stay within u32 (a pixel's rate at most MAX_PIXEL_RATE).
+        let most = if rates.is_some() {
+            (f64::from(done) + f64::from(pass)) * f64::from(rates::MAX_PIXEL_RATE) + f64::from(offset)
+        } else {
+            f64::from(done) + f64::from(pass) + f64::from(offset)
+        };
+        if most > f64::from(u32::MAX) {
             break;
         }
-        tiles
-            .par_iter_mut()
-            .for_each(|tile| tile.run_pass(&ctx, integrator, settings.seed, width, offset + first, pass));
+        tiles.par_iter_mut().for_each(|tile| {
+            tile.run_pass(&ctx, integrator, settings.seed, width, (offset + first, offset, done), pass);
+        });
         done += pass;
         match (settings.spp, settings.time_limit) {
             (Some(_), None) => bar.set_position(u64::from(done - first)),
@@ -659,7 +695,7 @@ fn render_in_pool<A: Accel, I: Integrator>(
         (e, e <= target.error)
     });
     let samples = taken(&tiles) - resumed_samples;
-    let counts = per_pixel.then(|| row_major(&tiles, width, height, |t, i| t.count[i]));
+    let counts = counted.then(|| row_major(&tiles, width, height, |t, i| t.count[i]));
 
     let (mut rays, mut non_finite) = (0, 0);
     for tile in &tiles {
@@ -668,7 +704,11 @@ fn render_in_pool<A: Accel, I: Integrator>(
     }
     // With adaptive sampling, the most samples any pixel took (a pixel may stop, take up
     // again when its neighbours' variance grows, and end below the passes run).
-    let spp = counts.as_ref().map_or(done - first, |c| c.iter().copied().max().unwrap_or(0));
+    // With rates, the render's count (pixels took about rate × it).
+    let spp = match &counts {
+        Some(c) if per_pixel => c.iter().copied().max().unwrap_or(0),
+        _ => done - first,
+    };
     let (pixels, variance, partial) = if prior.is_some() || settings.samples.is_some() {
         // The whole image's exact sums, row-major: training passes are combined over the
         // whole image, and a part keeps its sums.
