@@ -299,6 +299,34 @@ pub fn plan(width: u32, stats: &SeenStats, projected: &[f32], cost: f64, max_str
     SeenPlan { width, strata }
 }
 
+/// A pixel's per-sample `variance` and `rays`, measured by training samples that did not split
+/// the seen light, as they will be where `plan` splits it into `m²` film points: the seen
+/// term's share of the variance (the larger of the training's and the lights' projection,
+/// as [`plan`] weighs it; `projected` may be empty) falls by `m²`, and each film point adds
+/// the rays of the pixel's delta prefix.
+#[must_use]
+pub fn after_split(
+    plan: &SeenPlan,
+    stats: &SeenStats,
+    projected: &[f32],
+    pixel: usize,
+    variance: f64,
+    rays: f64,
+) -> (f64, f64) {
+    let m = plan.strata.get(pixel).copied().unwrap_or(UNSPLIT);
+    let Some(s) = stats.sums.get(pixel).filter(|_| m > UNSPLIT) else {
+        return (variance, rays);
+    };
+    let n = stats.samples.max(1) as f64;
+    let var = |sum: f64, sq: f64| (sq / n - (sum / n) * (sum / n)).max(0.0);
+    let seen = var(s[0], s[1]).max(f64::from(projected.get(pixel).copied().unwrap_or(0.0)));
+    let rest = var(s[2], s[3]);
+    let k = f64::from(m) * f64::from(m);
+    // Channel-summed parts: their ratio scales the channel-averaged variance.
+    let share = if seen + rest > 0.0 { (rest + seen / k) / (seen + rest) } else { 1.0 };
+    (variance * share, rays + k * (s[4] / n).max(1.0))
+}
+
 /// [`plan`] from the lights' projections onto the film alone (no pass measured yet): where a
 /// light smaller than a pixel projects, split from the start. Samples drawn under it stay
 /// unbiased, since the plan looks at no sample.
@@ -311,6 +339,24 @@ pub fn plan_from_projection(width: u32, projected: &[f32], max_strata: u8) -> Se
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A split pixel's variance keeps its rest and a `1/m²` share of its seen term, and its
+    /// samples cost `m²` more film points; an unsplit pixel's are left as measured.
+    #[test]
+    fn a_split_lowers_the_seen_variance_and_adds_its_rays() {
+        // Two pixels of 4 samples: seen 0, 0, 6, 6 (variance 9), rest 1, 3, 1, 3 (variance 1),
+        // two delta-prefix rays a sample.
+        let s = [12.0, 72.0, 8.0, 20.0, 8.0];
+        let st = SeenStats { samples: 4, sums: vec![s, s], rays: 0 };
+        let plan = SeenPlan { width: 2, strata: vec![3, UNSPLIT] };
+        let (v, r) = after_split(&plan, &st, &[], 0, 5.0, 4.0);
+        assert!((v - 5.0 * (1.0 + 9.0 / 9.0) / 10.0).abs() < 1e-12, "{v}");
+        assert!((r - (4.0 + 9.0 * 2.0)).abs() < 1e-12, "{r}");
+        assert_eq!(after_split(&plan, &st, &[], 1, 5.0, 4.0), (5.0, 4.0));
+        // The lights' projection counts where it is the larger.
+        let (v, _) = after_split(&plan, &st, &[90.0, 0.0], 0, 5.0, 4.0);
+        assert!((v - 5.0 * (1.0 + 90.0 / 9.0) / 91.0).abs() < 1e-12, "{v}");
+    }
 
     fn stats(sums: Vec<[f64; 5]>, samples: u64) -> SeenStats {
         SeenStats { samples, sums, rays: 0 }

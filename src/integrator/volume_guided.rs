@@ -246,7 +246,9 @@ impl Integrator for GuidedVolume {
             let cost = seen_stats.rays as f64 / samples.max(1.0);
             self.seen = Some(plan(width, &seen_stats, &projected, cost, self.settings.seen_strata));
         }
-        self.rates = pooled.rates(width, height);
+        // (Its training splits the seen light where the projection asks from the start, so
+        // the training's variances and rays are already those of the render there.)
+        self.rates = pooled.rates(width, height, |_, variance, cost| (variance, cost));
         drop(pooled);
         self.prior = (!prior.is_empty()).then_some(prior);
         let seen = match self.seen.as_ref().map(SeenPlan::split_pixels) {

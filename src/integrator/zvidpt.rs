@@ -22,7 +22,7 @@
 //! (`--integrator jensen --learned-guide on`).
 use super::mixture::{Mixture, sample_mixture};
 use super::path::{Mis, PathTracer};
-use super::seen::{SeenPlan, SeenStats, UNSPLIT, plan, projected_variance, split_seen};
+use super::seen::{SeenPlan, SeenStats, UNSPLIT, after_split, plan, projected_variance, split_seen};
 use super::{Integrator, RenderContext, Scratch, direct_light_against, nee_strategy, power_heuristic, sample_bsdf};
 use crate::Result;
 use crate::accel::Accel;
@@ -668,20 +668,29 @@ impl Pooled {
     }
 
     /// Each pixel's sample rate ([`crate::film::rates`]) from its neighbours' per-sample
-    /// variances (channels averaged) and rays per sample; `None` below
-    /// [`MIN_ALLOCATION_SPP`] training samples per pixel or without sums.
-    pub(crate) fn rates(&self, width: u32, height: u32) -> Option<Vec<f32>> {
+    /// variances (channels averaged) and rays per sample, as `render(pixel, variance, rays)`
+    /// expects the render's samples to have them; `None` below [`MIN_ALLOCATION_SPP`]
+    /// training samples per pixel or without sums.
+    pub(crate) fn rates(
+        &self,
+        width: u32,
+        height: u32,
+        render: impl Fn(usize, f64, f64) -> (f64, f64),
+    ) -> Option<Vec<f32>> {
         if self.sums.is_empty() || self.spp < MIN_ALLOCATION_SPP {
             return None;
         }
         let n = f64::from(self.spp);
-        let variance: Vec<f64> = self
+        let (variance, cost): (Vec<f64>, Vec<f64>) = self
             .sums
             .iter()
-            .map(|(s, q, _)| (0..3).map(|c| ((q[c] - s[c] * s[c] / n) / (n - 1.0)).max(0.0)).sum::<f64>() / 3.0)
-            .collect();
-        // Rays per sample, at least the camera ray.
-        let cost: Vec<f64> = self.sums.iter().map(|p| (p.2 / n).max(1.0)).collect();
+            .enumerate()
+            .map(|(i, (s, q, r))| {
+                let v = (0..3).map(|c| ((q[c] - s[c] * s[c] / n) / (n - 1.0)).max(0.0)).sum::<f64>() / 3.0;
+                // Rays per sample, at least the camera ray.
+                render(i, v, (r / n).max(1.0))
+            })
+            .unzip();
         crate::film::rates::pixel_rates(width, height, &variance, Some(&cost))
     }
 }
@@ -1175,15 +1184,21 @@ impl Integrator for LearnedZvidpt {
         }
         // Where to split the seen light: from the training's per-pixel variances of it and of
         // the rest, and the lights' projection; the walk's cost in rays per sample.
+        let mut projected = Vec::new();
         if self.settings.seen_strata > UNSPLIT && !seen_stats.sums.is_empty() {
             let samples = seen_stats.samples as f64 * seen_stats.sums.len() as f64;
             let cost = seen_stats.rays as f64 / samples.max(1.0);
-            let projected = projected_variance(ctx);
+            projected = projected_variance(ctx);
             self.seen = Some(plan(width, &seen_stats, &projected, cost, self.settings.seen_strata));
         }
-        // Each pixel's share of the render's samples, from the per-sample variances the
-        // training measured around it.
-        self.rates = pooled.rates(width, height);
+        // Each pixel's share of the render's samples, from the per-sample variances and rays
+        // the training measured around it, as the render's samples will have them: where the
+        // seen light is split (the training's samples were not), its variance falls and its
+        // film points cost rays.
+        self.rates = pooled.rates(width, height, |i, variance, cost| match &self.seen {
+            Some(plan) => after_split(plan, &seen_stats, &projected, i, variance, cost),
+            None => (variance, cost),
+        });
         drop(pooled);
         // The last pass stays unweighed: the image weighs it against the final passes.
         self.prior = (!prior.is_empty()).then_some(prior);
