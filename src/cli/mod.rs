@@ -293,7 +293,7 @@ pub struct PhotonArgs {
     pub seen_strata: u8,
     /// zvidpt and jensen --learned-guide on: share the render's samples among the pixels in
     /// proportion to the per-sample standard deviation the training measured around each
-    /// (from its neighbours, never its own samples: unbiased), floored at a tenth of the
+    /// (from its neighbours, never its own samples: unbiased), floored at 0.4 of the
     /// mean; or give every pixel the same count. --spp is then the mean count.
     #[arg(long, value_enum, default_value_t = Allocation::Error)]
     pub allocation: Allocation,
