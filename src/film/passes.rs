@@ -74,8 +74,9 @@ pub fn mean_variance(spp: u32, sum: &[[f64; 3]], sum_sq: &[[f64; 3]]) -> f64 {
     total / (3 * sum.len().max(1)) as f64
 }
 
+/// The checkerboard parity of pixel `index` (row-major) of an image `width` wide.
 #[inline]
-fn parity(index: usize, width: u32) -> usize {
+pub(super) fn parity(index: usize, width: u32) -> usize {
     let (x, y) = (index % width as usize, index / width as usize);
     (x + y) & 1
 }

@@ -67,7 +67,7 @@ pub fn pixel_rates(width: u32, height: u32, variance: &[f64], cost: Option<&[f64
 /// of each parity's values and counts, added directly (no summed-area differences, which lose
 /// small values next to a firefly's).
 fn neighbour_means(w: usize, h: usize, value: impl Fn(usize) -> f64) -> Vec<f64> {
-    let parity = |i: usize| (i % w + i / w) & 1;
+    let parity = |i: usize| super::passes::parity(i, w as u32);
     let clean = |i: usize| {
         let v = value(i);
         if v.is_finite() && v > 0.0 { v } else { 0.0 }
