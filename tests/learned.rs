@@ -212,6 +212,27 @@ impl zvidpt::integrator::Integrator for SplitPath {
     }
 }
 
+/// The seen light's probe finds a light the training did not meet: on
+/// `tests/scenes/tiny-lights` with one training spp, the pixel that sees a spark in the mirror
+/// (a fortieth of its area, so one training sample meets it one time in forty) is split. It
+/// fails with the probe left out of the plan (the pixel unsplit at seeds 1–4).
+#[test]
+fn seen_probe_finds_a_light_in_a_mirror_that_training_missed() {
+    let scene =
+        Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/scenes/tiny-lights")).expect("test scene loads");
+    // The spark's image in the mirror on the back wall (z = -0.99) lies as far behind it.
+    let film = scene.camera.project(zvidpt::geometry::Vec3A::new(-0.42, 0.27, -0.99 - (0.4 + 0.99))).unwrap();
+    let pixel = zvidpt::geometry::UVec2::new(film.x as u32, film.y as u32);
+    for seed in 1..=4 {
+        let settings =
+            LearnedSettings { fallback: false, caustic_photons: 0, train_spp: Some(1), ..LearnedSettings::default() };
+        let mut learned = LearnedZvidpt::new(settings);
+        render_bvh(&scene, &mut learned, 256, seed);
+        let plan = learned.seen_plan().expect("the training planned the split");
+        assert!(plan.strata(pixel) > 1, "seed {seed}: pixel {pixel} unsplit");
+    }
+}
+
 /// The seen light split over the pixel (`--seen-strata`) keeps every estimator unbiased: on
 /// `tests/scenes/tiny-lights` (lights a fortieth of a pixel's area, seen directly, in a mirror,
 /// through glass and in a plastic coat) the learned walk with the training's plan (which must

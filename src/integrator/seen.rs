@@ -15,8 +15,9 @@
 use super::{RenderContext, Scatter, Scratch, sample_bsdf};
 use crate::accel::Accel;
 use crate::geometry::{Ray, UVec2, Vec2, Vec3A};
-use crate::sampler::{SampleStream, survival_probability};
+use crate::sampler::{Domain, SampleStream, survival_probability};
 use crate::scene::SurfaceInteraction;
+use rayon::prelude::*;
 
 /// Strata per axis where nothing is split.
 pub const UNSPLIT: u8 = 1;
@@ -151,18 +152,34 @@ pub fn split_seen<A: Accel>(
     sum * (inv * inv)
 }
 
-/// The per-sample variance of the seen term (channels summed) that lights smaller than a
-/// pixel's footprint add where they project, lit side towards the camera and their centre
-/// unoccluded: a light covering a share `f` of the footprint with radiance `L` gives
-/// `L²·f·(1 − f)`. Lights of a footprint or more are left to the training's measurement.
+/// Points per square pixel of a light's image that [`projected_variance`] looks through at
+/// most: a sliver of 1/1,000 of a pixel still holds about 16.
+pub const PROJECTION_DENSITY: f64 = 16_384.0;
+/// Points [`projected_variance`] looks through over all lights (one ray or more each): where
+/// the lights' images are larger, they are spread thinner.
+pub const PROJECTION_POINTS: f64 = 262_144.0;
+/// The golden ratio's fractional part: the second axis of the lattice of points.
+const GOLDEN: f64 = 0.618_033_988_749_894_9;
+
+/// The per-sample variance of the seen term (channels summed) that the lights' visible parts
+/// add where they project: a pixel whose footprint sees lights of radiance `Lⱼ` over shares
+/// `fⱼ` of it has `Σ fⱼLⱼ² − (Σ fⱼLⱼ)²`. Each emitting triangle facing the camera is covered by
+/// points spread evenly over its image on the film (at most [`PROJECTION_DENSITY`] per square
+/// pixel, [`PROJECTION_POINTS`] over all lights), each point's share counted where the camera
+/// sees it (its transmittance through media and index-matched boundaries; zero behind a
+/// surface). So a light larger than a pixel of which the camera sees only a sliver past an
+/// occluder (a lamp's bulb past its shade) counts as the small light it looks like, and a
+/// light fully seen over a pixel adds nothing there. The points are fixed by the geometry
+/// alone (no random number), so a plan built from them keeps every sample unbiased.
 #[must_use]
 pub fn projected_variance<A: Accel>(ctx: &RenderContext<A>) -> Vec<f32> {
     let camera = &ctx.scene.camera;
     let (w, h) = (camera.width, camera.height);
     let [rx, ry] = camera.filter.shape.radius();
     let footprint = (4.0 * rx * ry).max(1e-6);
-    // Per pixel: the share of its footprint lights cover, and their brightest radiance.
-    let mut cover = vec![(0.0f32, 0.0f32); (w as usize) * (h as usize)];
+    // The emitting triangles facing the camera whose image meets the film: index, film
+    // corners and image area (square pixels).
+    let mut lights: Vec<(usize, [Vec2; 3], f32)> = Vec::new();
     for (t, tri) in ctx.scene.triangles.iter().enumerate() {
         let material = ctx.scene.material_of(t as u32);
         if material.emission == Vec3A::ZERO {
@@ -178,37 +195,184 @@ pub fn projected_variance<A: Accel>(ctx: &RenderContext<A>) -> Vec<f32> {
             continue;
         };
         let area = 0.5 * ((b - a).perp_dot(c - a)).abs();
-        if area.is_nan() || area >= footprint {
-            continue;
-        }
         let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
-        // Pixels whose footprint [x + ½ − r, x + ½ + r] meets the light's box.
-        let x0 = (lo.x - 0.5 - rx).ceil().max(0.0);
-        let x1 = (hi.x - 0.5 + rx).floor().min(w as f32 - 1.0);
-        let y0 = (lo.y - 0.5 - ry).ceil().max(0.0);
-        let y1 = (hi.y - 0.5 + ry).floor().min(h as f32 - 1.0);
-        if x0 > x1 || y0 > y1 {
-            continue;
+        let meets = hi.x + rx >= 0.0 && lo.x - rx <= w as f32 && hi.y + ry >= 0.0 && lo.y - ry <= h as f32;
+        if area.is_finite() && area > 0.0 && meets {
+            lights.push((t, [a, b, c], area));
         }
-        let Some(tr) = transmittance_to(ctx, camera.eye, centre) else {
-            continue;
-        };
-        let radiance = (material.emission * tr).element_sum();
-        for y in y0 as u32..=y1 as u32 {
-            for x in x0 as u32..=x1 as u32 {
-                let c = &mut cover[(y * w + x) as usize];
-                c.0 += area / footprint;
-                c.1 = c.1.max(radiance);
+    }
+    // Per pixel: Σ f·L and Σ f·L² (channel sums), f the share of its footprint.
+    let mut moments = vec![(0.0f64, 0.0f64); (w as usize) * (h as usize)];
+    let total: f64 = lights.iter().map(|l| f64::from(l.2)).sum();
+    let density = PROJECTION_DENSITY.min(PROJECTION_POINTS / total.max(1e-30));
+    for (t, [a, b, c], area) in lights {
+        let tri = ctx.scene.triangles[t];
+        let emission = ctx.scene.material_of(t as u32).emission;
+        let ng = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+        // At most `PROJECTION_POINTS` for one triangle, at least one.
+        let n = (f64::from(area) * density).ceil().clamp(1.0, PROJECTION_POINTS) as u32;
+        let share = f64::from(area) / f64::from(n) / f64::from(footprint);
+        for i in 0..n {
+            // A rank-1 lattice over the unit square, folded onto the triangle.
+            let u = (f64::from(i) + 0.5) / f64::from(n);
+            let v = (f64::from(i) * GOLDEN).fract();
+            let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
+            let (u, v) = (u as f32, v as f32);
+            let film = a + (b - a) * u + (c - a) * v;
+            // The light's point the camera's ray through `film` meets.
+            let ray = camera.ray(film);
+            let along = ray.dir.dot(ng);
+            if along == 0.0 {
+                continue;
+            }
+            let point = ray.origin + ray.dir * ((tri[0] - ray.origin).dot(ng) / along);
+            let Some(tr) = transmittance_to(ctx, camera.eye, point) else {
+                continue;
+            };
+            let radiance = f64::from((emission * tr).element_sum());
+            if !(radiance.is_finite() && radiance > 0.0) {
+                continue;
+            }
+            // Pixels whose footprint [x + ½ − r, x + ½ + r] holds the point.
+            let x0 = (film.x - 0.5 - rx).ceil().max(0.0);
+            let x1 = (film.x - 0.5 + rx).floor().min(w as f32 - 1.0);
+            let y0 = (film.y - 0.5 - ry).ceil().max(0.0);
+            let y1 = (film.y - 0.5 + ry).floor().min(h as f32 - 1.0);
+            if !(x0 <= x1 && y0 <= y1) {
+                continue;
+            }
+            for y in y0 as u32..=y1 as u32 {
+                for x in x0 as u32..=x1 as u32 {
+                    let m = &mut moments[(y * w + x) as usize];
+                    m.0 += share * radiance;
+                    m.1 += share * radiance * radiance;
+                }
             }
         }
     }
-    cover
-        .into_iter()
-        .map(|(f, l)| {
-            let f = f.min(1.0);
-            l * l * f * (1.0 - f)
+    moments.into_iter().map(|(mean, square)| (square - mean * mean).max(0.0) as f32).collect()
+}
+
+/// Film points [`probed_variance`] traces in one pixel at most.
+pub const PROBE_POINTS_PER_PIXEL: u32 = 4096;
+/// The share of the render's rays the seen light's probe may take: where many pixels see
+/// glass or mirrors, each gets fewer film points.
+pub const PROBE_SHARE: f64 = 0.05;
+
+/// The pixels whose training samples' delta prefixes went past the camera's ray (some first
+/// hit had a delta lobe: glass, a mirror), and their neighbours: where a light may be seen
+/// through delta scatters. `stats` as [`plan`] reads them.
+#[must_use]
+pub fn delta_pixels(width: u32, stats: &SeenStats) -> Vec<bool> {
+    let n = stats.samples.max(1) as f64;
+    let height = stats.sums.len() / width.max(1) as usize;
+    let w = width as usize;
+    let own: Vec<bool> = stats.sums.iter().map(|s| s[4] / n > 1.0 + 1e-9).collect();
+    let mut out = vec![false; own.len()];
+    for y in 0..height {
+        for x in 0..w {
+            if own[y * w + x] {
+                for yy in y.saturating_sub(1)..(y + 2).min(height) {
+                    for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                        out[yy * w + xx] = true;
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Each pixel's largest value among itself and its eight neighbours (`values` row-major,
+/// `width` per row).
+#[must_use]
+pub fn nearby_max(width: u32, values: &[f32]) -> Vec<f32> {
+    let w = width.max(1) as usize;
+    let h = values.len() / w;
+    let mut out = values.to_vec();
+    for y in 0..h {
+        for x in 0..w {
+            let v = values[y * w + x];
+            if v > 0.0 {
+                for yy in y.saturating_sub(1)..(y + 2).min(h) {
+                    for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                        let o = &mut out[yy * w + xx];
+                        *o = o.max(v);
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The mean rays of a delta prefix (a film point's cost) over the pixels `probe` marks, as
+/// training measured them; at least one.
+#[must_use]
+pub fn delta_prefix_rays(stats: &SeenStats, probe: &[bool]) -> f64 {
+    let n = stats.samples.max(1) as f64;
+    let (sum, count) =
+        stats.sums.iter().zip(probe).filter(|&(_, &p)| p).fold((0.0, 0.0), |(s, c), (x, _)| (s + x[4] / n, c + 1.0));
+    if count > 0.0 { (sum / count).max(1.0) } else { 1.0 }
+}
+
+/// The seen term's per-sample variance (channels summed) in the pixels `probe` marks,
+/// measured from many stratified film points of each ([`PROBE_POINTS_PER_PIXEL`] at most,
+/// `points` over all, at least 16 each), their delta prefixes traced as [`split_seen`] traces them; 0
+/// elsewhere. A light seen through glass or in a mirror over a small share of a pixel (a
+/// lamp's image in a glass egg: 1/760 of a pixel on Bitterli's veach-bidir) is one the
+/// training's few samples rarely meet, so a plan from the training alone leaves that pixel a
+/// lottery. The film points are the probe's own streams, apart from the render's samples, so
+/// a plan built from them keeps every sample unbiased. Also returns the rays traced.
+#[must_use]
+pub fn probed_variance<A: Accel>(ctx: &RenderContext<A>, seed: u64, probe: &[bool], points: u64) -> (Vec<f32>, u64) {
+    let count = probe.iter().filter(|&&p| p).count() as u64;
+    if count == 0 {
+        return (vec![0.0; probe.len()], 0);
+    }
+    // Film points per pixel: a square number, at least 16.
+    let per = (points / count).clamp(16, u64::from(PROBE_POINTS_PER_PIXEL)) as u32;
+    let side = (f64::from(per).sqrt() as u32).max(1);
+    let inv = 1.0 / side as f32;
+    let k = f64::from(side * side);
+    let width = ctx.scene.camera.width;
+    let out: Vec<(f32, u64)> = probe
+        .par_iter()
+        .enumerate()
+        .with_min_len(64)
+        .map_init(Scratch::default, |scratch, (i, &on)| {
+            if !on {
+                return (0.0, 0);
+            }
+            let before = scratch.rays;
+            let pixel = UVec2::new(i as u32 % width, i as u32 / width);
+            let mut rng = SampleStream::in_domain(Domain::SeenProbe, seed, i as u64, 0);
+            let (mut sum, mut sq) = (0.0f64, 0.0f64);
+            for j in 0..side {
+                for l in 0..side {
+                    let u = rng.next_2d();
+                    let u = Vec2::new(
+                        ((l as f32 + u.x) * inv).min(0.999_999_94),
+                        ((j as f32 + u.y) * inv).min(0.999_999_94),
+                    );
+                    let film = ctx.scene.camera.film_point(pixel, u);
+                    let seen = if ctx.volumetric {
+                        super::volume::seen_emission_volume(ctx, film, &mut rng, scratch)
+                    } else {
+                        seen_emission(ctx, film, &mut rng, scratch)
+                    };
+                    let s = f64::from(seen.element_sum());
+                    if s.is_finite() {
+                        sum += s;
+                        sq += s * s;
+                    }
+                }
+            }
+            let mean = sum / k;
+            (((sq / k - mean * mean).max(0.0)) as f32, scratch.rays - before)
         })
-        .collect()
+        .collect();
+    (out.iter().map(|o| o.0).collect(), out.iter().map(|o| o.1).sum())
 }
 
 /// What reaches the camera at `eye` from point `to` (the light's own surface excluded): zero
@@ -356,6 +520,37 @@ mod tests {
         // The lights' projection counts where it is the larger.
         let (v, _) = after_split(&plan, &st, &[90.0, 0.0], 0, 5.0, 4.0);
         assert!((v - 5.0 * (1.0 + 90.0 / 9.0) / 91.0).abs() < 1e-12, "{v}");
+    }
+
+    /// A probe's hit spreads to the eight neighbours and no further; the delta pixels are those
+    /// whose samples traced more than the camera's ray, and their neighbours; a film point's
+    /// cost is the mean prefix over them.
+    #[test]
+    fn probes_reach_the_neighbours() {
+        let mut v = vec![0.0f32; 20];
+        v[6] = 3.0; // (1, 1) of a 5 × 4 image
+        v[19] = 1.0;
+        let near = nearby_max(5, &v);
+        for (i, &n) in near.iter().enumerate() {
+            let (x, y) = (i % 5, i / 5);
+            let want = if x <= 2 && y <= 2 {
+                3.0
+            } else if x >= 3 && y >= 2 {
+                1.0
+            } else {
+                0.0
+            };
+            assert_eq!(n, want, "pixel ({x}, {y})");
+        }
+        // Four samples: one ray each, except pixel (4, 3), which traced 10.
+        let mut sums = vec![[0.0, 0.0, 0.0, 0.0, 4.0]; 20];
+        sums[19][4] = 10.0;
+        let st = SeenStats { samples: 4, sums, rays: 0 };
+        let d = delta_pixels(5, &st);
+        let marked: Vec<usize> = (0..20).filter(|&i| d[i]).collect();
+        assert_eq!(marked, vec![13, 14, 18, 19]);
+        assert!((delta_prefix_rays(&st, &d) - (1.0 * 3.0 + 2.5) / 4.0).abs() < 1e-12);
+        assert_eq!(delta_prefix_rays(&st, &[false; 20]), 1.0);
     }
 
     fn stats(sums: Vec<[f64; 5]>, samples: u64) -> SeenStats {

@@ -22,7 +22,10 @@
 //! (`--integrator jensen --learned-guide on`).
 use super::mixture::{Mixture, sample_mixture};
 use super::path::{Mis, PathTracer};
-use super::seen::{SeenPlan, SeenStats, UNSPLIT, after_split, plan, projected_variance, split_seen};
+use super::seen::{
+    PROBE_SHARE, SeenPlan, SeenStats, UNSPLIT, after_split, delta_pixels, delta_prefix_rays, nearby_max, plan,
+    probed_variance, projected_variance, split_seen,
+};
 use super::{Integrator, RenderContext, Scratch, direct_light_against, nee_strategy, power_heuristic, sample_bsdf};
 use crate::Result;
 use crate::accel::Accel;
@@ -1185,11 +1188,37 @@ impl Integrator for LearnedZvidpt {
         // Where to split the seen light: from the training's per-pixel variances of it and of
         // the rest, and the lights' projection; the walk's cost in rays per sample.
         let mut projected = Vec::new();
+        let mut seen_probe_rays = 0u64;
         if self.settings.seen_strata > UNSPLIT && !seen_stats.sums.is_empty() {
             let samples = seen_stats.samples as f64 * seen_stats.sums.len() as f64;
             let cost = seen_stats.rays as f64 / samples.max(1.0);
             projected = projected_variance(ctx);
-            self.seen = Some(plan(width, &seen_stats, &projected, cost, self.settings.seen_strata));
+            // The probe may take a share of the rays the render will trace, each film point
+            // its delta prefix's rays as training measured them.
+            let render_rays = match (ctx.spp, ctx.time_limit) {
+                (Some(spp), _) => f64::from(spp) * samples / seen_stats.samples.max(1) as f64 * cost,
+                (None, Some(t)) => {
+                    let seconds: f64 = self.iterations.iter().map(|i| i.seconds).sum();
+                    t * seen_stats.rays as f64 / seconds.max(1e-3)
+                }
+                (None, None) => {
+                    f64::from(1u32 << UNBUDGETED_ITERATIONS) * samples / seen_stats.samples.max(1) as f64 * cost
+                }
+            };
+            let probe = delta_pixels(width, &seen_stats);
+            let prefix = delta_prefix_rays(&seen_stats, &probe);
+            let points = (PROBE_SHARE * render_rays / prefix) as u64;
+            let (probed, probe_rays) = probed_variance(ctx, seed, &probe, points);
+            // A light's image through glass spans neighbouring pixels: where the probe met it
+            // in one, its neighbours are split too (the probe's few film points may have
+            // missed it there).
+            let near = nearby_max(width, &probed);
+            let planned: Vec<f32> = projected.iter().zip(&near).map(|(&p, &q)| p.max(q)).collect();
+            for (p, q) in projected.iter_mut().zip(probed) {
+                *p = p.max(q);
+            }
+            seen_probe_rays = probe_rays;
+            self.seen = Some(plan(width, &seen_stats, &planned, cost, self.settings.seen_strata));
         }
         // Each pixel's share of the render's samples, from the per-sample variances and rays
         // the training measured around it, as the render's samples will have them: where the
@@ -1224,7 +1253,10 @@ impl Integrator for LearnedZvidpt {
         };
         let seen = match self.seen.as_ref().map(SeenPlan::split_pixels) {
             Some((n, m)) if n > 0 => {
-                format!("; seen light split over the pixel in {n} pixels (up to {m}x{m} film points)")
+                format!(
+                    "; seen light split over the pixel in {n} pixels (up to {m}x{m} film points; delta prefixes probed with {:.2} M rays)",
+                    seen_probe_rays as f64 / 1e6
+                )
             }
             _ => String::new(),
         };

@@ -25,6 +25,9 @@ pub enum Domain {
     /// A learning integrator's probe of its walks (through pixel centres): independent of
     /// the render's own camera samples.
     Probe = 4,
+    /// The seen light's probe of pixels that see through delta scatters: independent of the
+    /// render's own camera samples.
+    SeenProbe = 5,
 }
 
 /// A 64-bit finaliser with full avalanche (Pelle Evensen's rrmxmx).
