@@ -291,6 +291,11 @@ pub struct PhotonArgs {
     /// extra camera rays per sample, chosen per pixel from the training (1: off).
     #[arg(long, default_value_t = 8)]
     pub seen_strata: u8,
+    /// zvidpt and jensen --learned-guide on: before splitting the seen light, trace the
+    /// pixels that see glass or mirrors through many film points each (at most 5% of the
+    /// render's rays), so a light's image there too small for the training to meet is split.
+    #[arg(long, value_enum, default_value_t = Switch::On)]
+    pub seen_probe: Switch,
     /// zvidpt and jensen --learned-guide on: share the render's samples among the pixels in
     /// proportion to the per-sample standard deviation the training measured around each
     /// (from its neighbours, never its own samples: unbiased), floored at 0.4 of the
@@ -336,6 +341,7 @@ impl PhotonArgs {
             min_survival: 0.2,
             defensive: 0.0,
             seen_strata: 8,
+            seen_probe: Switch::On,
             allocation: Allocation::Error,
             learned_guide: Switch::Off,
         }
@@ -362,6 +368,7 @@ impl PhotonArgs {
             min_survival: self.min_survival,
             defensive: self.defensive,
             seen_strata: self.seen_strata,
+            seen_probe: self.seen_probe == Switch::On,
             allocation: self.allocation,
             train_spp: self.train_spp,
             mis: self.mis,
@@ -506,6 +513,7 @@ impl PhotonArgs {
             meta.push("min_survival", self.min_survival);
             meta.push("defensive", self.defensive);
             meta.push("seen_strata", self.seen_strata);
+            meta.push("seen_probe", flag_name(self.seen_probe));
             meta.push("allocation", flag_name(self.allocation));
         }
     }

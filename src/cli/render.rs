@@ -599,6 +599,7 @@ mod tests {
         ("min-survival", "zvidpt", "0.5"),
         ("defensive", "zvidpt", "0.1"),
         ("seen-strata", "zvidpt", "1"),
+        ("seen-probe", "zvidpt", "off"),
     ];
 
     fn identity(args: &[&str]) -> Vec<(String, String)> {

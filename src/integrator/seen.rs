@@ -375,6 +375,65 @@ pub fn probed_variance<A: Accel>(ctx: &RenderContext<A>, seed: u64, probe: &[boo
     (out.iter().map(|o| o.0).collect(), out.iter().map(|o| o.1).sum())
 }
 
+/// What the seen light's probe measured: each pixel's variance, and the rays it traced.
+#[derive(Clone, Debug, Default)]
+pub struct SeenProbe {
+    width: u32,
+    /// The seen term's per-sample variance each pixel's film points read (0 where not probed).
+    pub variance: Vec<f32>,
+    /// Rays the probe traced.
+    pub rays: u64,
+}
+
+impl SeenProbe {
+    /// The variances a plan splits by: the larger of `bounds` and the probe's; where the
+    /// probe read nothing, its eight neighbours' largest (a light's image through glass spans
+    /// pixels, and the probe's film points may have missed it in some of them; where they met
+    /// it, their own measure stands).
+    #[must_use]
+    pub fn planned(&self, bounds: &[f32]) -> Vec<f32> {
+        let near = nearby_max(self.width, &self.variance);
+        bounds
+            .iter()
+            .enumerate()
+            .map(|(i, &b)| {
+                let own = self.variance.get(i).copied().unwrap_or(0.0);
+                b.max(if own > 0.0 { own } else { near.get(i).copied().unwrap_or(0.0) })
+            })
+            .collect()
+    }
+
+    /// Raises `bounds` to the probe's own variances (not spread): what a split pixel's seen
+    /// term is measured as.
+    pub fn raise(&self, bounds: &mut [f32]) {
+        for (b, &q) in bounds.iter_mut().zip(&self.variance) {
+            *b = b.max(q);
+        }
+    }
+}
+
+/// The seen light's probe after training: the pixels whose training samples passed a delta
+/// scatter, and their neighbours ([`delta_pixels`]), probed with [`PROBE_SHARE`] of
+/// `render_rays`, the rays the render will trace, each film point costing the delta prefix's
+/// rays as training measured them ([`probed_variance`]); none where `render_rays` is 0.
+#[must_use]
+pub fn probe_seen<A: Accel>(
+    ctx: &RenderContext<A>,
+    seed: u64,
+    width: u32,
+    stats: &SeenStats,
+    render_rays: f64,
+) -> SeenProbe {
+    if !(render_rays > 0.0) {
+        return SeenProbe { width, variance: Vec::new(), rays: 0 };
+    }
+    let probe = delta_pixels(width, stats);
+    let points = PROBE_SHARE * render_rays / delta_prefix_rays(stats, &probe);
+    let points = if points.is_finite() { points.max(0.0) as u64 } else { 0 };
+    let (variance, rays) = probed_variance(ctx, seed, &probe, points);
+    SeenProbe { width, variance, rays }
+}
+
 /// What reaches the camera at `eye` from point `to` (the light's own surface excluded): zero
 /// behind a surface (`None`), else the transmittance of the media crossed (1 in vacuum), the
 /// boundaries of media crossed without a bounce.

@@ -16,11 +16,13 @@
 //! light smaller than a pixel projects, the seen light is split over the pixel from the first
 //! training pass on.
 use super::path::PathTracer;
-use super::seen::{SeenPlan, SeenStats, UNSPLIT, plan, plan_from_projection, projected_variance, split_seen};
+use super::seen::{
+    SeenPlan, SeenStats, UNSPLIT, plan, plan_from_projection, probe_seen, projected_variance, split_seen,
+};
 use super::volume::{Guidance, trace_volume_path};
 use super::zvidpt::{
     Allocation, Iteration, LearnedSettings, MIN_TRAINING_SPP, PROBE_SPP, PixelSums, Pooled, TrainingSums, add_sample,
-    add_training_sample, gather_rows, iteration_fits, probe_lattice, training_budget,
+    add_training_sample, gather_rows, iteration_fits, probe_lattice, render_rays, training_budget,
 };
 use super::{Integrator, RenderContext, Scratch};
 use crate::Result;
@@ -241,19 +243,30 @@ impl Integrator for GuidedVolume {
             self.fell_back = g > p;
         }
         // Where to split the seen light, as the surface walk decides it.
+        let mut seen_probe_rays = 0u64;
         if self.settings.seen_strata > UNSPLIT && !seen_stats.sums.is_empty() {
             let samples = seen_stats.samples as f64 * seen_stats.sums.len() as f64;
             let cost = seen_stats.rays as f64 / samples.max(1.0);
-            self.seen = Some(plan(width, &seen_stats, &projected, cost, self.settings.seen_strata));
+            // The probe of pixels seen through delta scatters, as the surface walk's.
+            let seconds: f64 = self.iterations.iter().map(|i| i.seconds).sum();
+            let rays = if self.settings.seen_probe { render_rays(ctx, &seen_stats, seconds) } else { 0.0 };
+            let probe = probe_seen(ctx, seed, width, &seen_stats, rays);
+            self.seen = Some(plan(width, &seen_stats, &probe.planned(&projected), cost, self.settings.seen_strata));
+            seen_probe_rays = probe.rays;
         }
         // (Its training splits the seen light where the projection asks from the start, so
-        // the training's variances and rays are already those of the render there.)
+        // the training's variances and rays are already those of the render there; where the
+        // probe adds a split, the rates keep the unsplit measure: fewer samples there than
+        // the split would ask, never a biased one.)
         self.rates = pooled.rates(width, height, |_, variance, cost| (variance, cost));
         drop(pooled);
         self.prior = (!prior.is_empty()).then_some(prior);
         let seen = match self.seen.as_ref().map(SeenPlan::split_pixels) {
             Some((n, m)) if n > 0 => {
-                format!("; seen light split over the pixel in {n} pixels (up to {m}x{m} film points)")
+                format!(
+                    "; seen light split over the pixel in {n} pixels (up to {m}x{m} film points; delta prefixes probed with {:.2} M rays)",
+                    seen_probe_rays as f64 / 1e6
+                )
             }
             _ => String::new(),
         };

@@ -22,10 +22,7 @@
 //! (`--integrator jensen --learned-guide on`).
 use super::mixture::{Mixture, sample_mixture};
 use super::path::{Mis, PathTracer};
-use super::seen::{
-    PROBE_SHARE, SeenPlan, SeenStats, UNSPLIT, after_split, delta_pixels, delta_prefix_rays, nearby_max, plan,
-    probed_variance, projected_variance, split_seen,
-};
+use super::seen::{SeenPlan, SeenStats, UNSPLIT, after_split, plan, probe_seen, projected_variance, split_seen};
 use super::{Integrator, RenderContext, Scratch, direct_light_against, nee_strategy, power_heuristic, sample_bsdf};
 use crate::Result;
 use crate::accel::Accel;
@@ -136,6 +133,10 @@ pub struct LearnedSettings {
     /// prefix again, each pixel's count chosen from the training's measurements and the
     /// lights' projection.
     pub seen_strata: u8,
+    /// Probe the pixels that see through delta scatters with many film points before the
+    /// seen light's plan ([`super::seen::probe_seen`]), so a light's image too small for the
+    /// training to meet is split too.
+    pub seen_probe: bool,
     /// How the render's samples are shared among the pixels: each pixel's rate from the
     /// training's variance around it ([`crate::film::rates`]), or every pixel alike.
     pub allocation: Allocation,
@@ -179,6 +180,7 @@ impl Default for LearnedSettings {
             min_survival: 0.2,
             defensive: 0.0,
             seen_strata: 8,
+            seen_probe: true,
             allocation: Allocation::Error,
         }
     }
@@ -290,6 +292,19 @@ pub(crate) fn training_budget<A: Accel>(ctx: &RenderContext<A>, train_spp: Optio
     // Iterations that fit the sample budget: 1 + 2 + … + 2^(k−1) = 2^k − 1 ≤ budget.
     let planned = spp_budget.map(|b| (u64::from(b) + 1).ilog2().min(16));
     (planned, time_budget)
+}
+
+/// The rays the render will trace, as the training's `stats` (samples and rays over
+/// `seconds`) project them: its samples times the rays per sample, or its time budget times
+/// the rays per second (a render to a noise target alone: a 64-spp render's).
+pub(crate) fn render_rays<A: Accel>(ctx: &RenderContext<A>, stats: &SeenStats, seconds: f64) -> f64 {
+    let pixels = stats.sums.len() as f64;
+    let per_sample = stats.rays as f64 / (stats.samples as f64 * pixels).max(1.0);
+    match (ctx.spp, ctx.time_limit) {
+        (Some(spp), _) => f64::from(spp) * pixels * per_sample,
+        (None, Some(t)) => t * stats.rays as f64 / seconds.max(1e-3),
+        (None, None) => 64.0 * pixels * per_sample,
+    }
 }
 
 /// Whether training iteration `k` (of `2^k` spp) runs, under [`training_budget`]'s plan, after
@@ -1193,31 +1208,12 @@ impl Integrator for LearnedZvidpt {
             let samples = seen_stats.samples as f64 * seen_stats.sums.len() as f64;
             let cost = seen_stats.rays as f64 / samples.max(1.0);
             projected = projected_variance(ctx);
-            // The probe may take a share of the rays the render will trace, each film point
-            // its delta prefix's rays as training measured them.
-            let render_rays = match (ctx.spp, ctx.time_limit) {
-                (Some(spp), _) => f64::from(spp) * samples / seen_stats.samples.max(1) as f64 * cost,
-                (None, Some(t)) => {
-                    let seconds: f64 = self.iterations.iter().map(|i| i.seconds).sum();
-                    t * seen_stats.rays as f64 / seconds.max(1e-3)
-                }
-                (None, None) => {
-                    f64::from(1u32 << UNBUDGETED_ITERATIONS) * samples / seen_stats.samples.max(1) as f64 * cost
-                }
-            };
-            let probe = delta_pixels(width, &seen_stats);
-            let prefix = delta_prefix_rays(&seen_stats, &probe);
-            let points = (PROBE_SHARE * render_rays / prefix) as u64;
-            let (probed, probe_rays) = probed_variance(ctx, seed, &probe, points);
-            // A light's image through glass spans neighbouring pixels: where the probe met it
-            // in one, its neighbours are split too (the probe's few film points may have
-            // missed it there).
-            let near = nearby_max(width, &probed);
-            let planned: Vec<f32> = projected.iter().zip(&near).map(|(&p, &q)| p.max(q)).collect();
-            for (p, q) in projected.iter_mut().zip(probed) {
-                *p = p.max(q);
-            }
-            seen_probe_rays = probe_rays;
+            let seconds: f64 = self.iterations.iter().map(|i| i.seconds).sum();
+            let rays = if self.settings.seen_probe { render_rays(ctx, &seen_stats, seconds) } else { 0.0 };
+            let probe = probe_seen(ctx, seed, width, &seen_stats, rays);
+            let planned = probe.planned(&projected);
+            probe.raise(&mut projected);
+            seen_probe_rays = probe.rays;
             self.seen = Some(plan(width, &seen_stats, &planned, cost, self.settings.seen_strata));
         }
         // Each pixel's share of the render's samples, from the per-sample variances and rays
