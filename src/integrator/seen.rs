@@ -158,6 +158,9 @@ pub const PROJECTION_DENSITY: f64 = 16_384.0;
 /// Points [`projected_variance`] looks through over all lights (one ray or more each): where
 /// the lights' images are larger, they are spread thinner.
 pub const PROJECTION_POINTS: f64 = 262_144.0;
+/// The largest share of a pixel's footprint the lights' projection judges: above it, the
+/// training's own measure of the seen light stands.
+pub const PROJECTED_SHARE: f64 = 0.25;
 /// The golden ratio's fractional part: the second axis of the lattice of points.
 const GOLDEN: f64 = 0.618_033_988_749_894_9;
 
@@ -170,7 +173,9 @@ const GOLDEN: f64 = 0.618_033_988_749_894_9;
 /// surface). So a light larger than a pixel of which the camera sees only a sliver past an
 /// occluder (a lamp's bulb past its shade) counts as the small light it looks like, and a
 /// light fully seen over a pixel adds nothing there. The points are fixed by the geometry
-/// alone (no random number), so a plan built from them keeps every sample unbiased.
+/// alone (no random number), so a plan built from them keeps every sample unbiased. Pixels
+/// whose footprint the lights cover by [`PROJECTED_SHARE`] or more read 0 (the training
+/// meets those lights often enough to measure them).
 #[must_use]
 pub fn projected_variance<A: Accel>(ctx: &RenderContext<A>) -> Vec<f32> {
     let camera = &ctx.scene.camera;
@@ -201,8 +206,8 @@ pub fn projected_variance<A: Accel>(ctx: &RenderContext<A>) -> Vec<f32> {
             lights.push((t, [a, b, c], area));
         }
     }
-    // Per pixel: Σ f·L and Σ f·L² (channel sums), f the share of its footprint.
-    let mut moments = vec![(0.0f64, 0.0f64); (w as usize) * (h as usize)];
+    // Per pixel: Σ f, Σ f·L and Σ f·L² (channel sums), f the share of its footprint.
+    let mut moments = vec![(0.0f64, 0.0f64, 0.0f64); (w as usize) * (h as usize)];
     let total: f64 = lights.iter().map(|l| f64::from(l.2)).sum();
     let density = PROJECTION_DENSITY.min(PROJECTION_POINTS / total.max(1e-30));
     for (t, [a, b, c], area) in lights {
@@ -244,13 +249,20 @@ pub fn projected_variance<A: Accel>(ctx: &RenderContext<A>) -> Vec<f32> {
             for y in y0 as u32..=y1 as u32 {
                 for x in x0 as u32..=x1 as u32 {
                     let m = &mut moments[(y * w + x) as usize];
-                    m.0 += share * radiance;
-                    m.1 += share * radiance * radiance;
+                    m.0 += share;
+                    m.1 += share * radiance;
+                    m.2 += share * radiance * radiance;
                 }
             }
         }
     }
-    moments.into_iter().map(|(mean, square)| (square - mean * mean).max(0.0) as f32).collect()
+    // Where lights cover a large share of the footprint the training meets them often and
+    // measures their variance itself; the points' own discretisation (a few per cent of a
+    // pixel) would read a fully covered pixel as a noisy one.
+    moments
+        .into_iter()
+        .map(|(f, mean, square)| if f < PROJECTED_SHARE { (square - mean * mean).max(0.0) as f32 } else { 0.0 })
+        .collect()
 }
 
 /// Film points [`probed_variance`] traces in one pixel at most.
