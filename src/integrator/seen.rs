@@ -272,8 +272,10 @@ pub const PROBE_POINTS_PER_PIXEL: u32 = 4096;
 pub const PROBE_SHARE: f64 = 0.05;
 
 /// The pixels whose training samples' delta prefixes went past the camera's ray (some first
-/// hit had a delta lobe: glass, a mirror), and their neighbours: where a light may be seen
-/// through delta scatters. `stats` as [`plan`] reads them.
+/// hit had a delta lobe: glass, a mirror), and their neighbours, where none of the training's
+/// samples met light along the prefix: where a light may be seen through delta scatters
+/// that the training cannot have measured (where it met one, its measure stands). `stats`
+/// as [`plan`] reads them.
 #[must_use]
 pub fn delta_pixels(width: u32, stats: &SeenStats) -> Vec<bool> {
     let n = stats.samples.max(1) as f64;
@@ -291,6 +293,9 @@ pub fn delta_pixels(width: u32, stats: &SeenStats) -> Vec<bool> {
                 }
             }
         }
+    }
+    for (o, st) in out.iter_mut().zip(&stats.sums) {
+        *o &= st[1] == 0.0;
     }
     out
 }
@@ -391,6 +396,8 @@ pub fn probed_variance<A: Accel>(ctx: &RenderContext<A>, seed: u64, probe: &[boo
 #[derive(Clone, Debug, Default)]
 pub struct SeenProbe {
     width: u32,
+    /// The pixels probed.
+    probed: Vec<bool>,
     /// The seen term's per-sample variance each pixel's film points read (0 where not probed).
     pub variance: Vec<f32>,
     /// Rays the probe traced.
@@ -399,9 +406,9 @@ pub struct SeenProbe {
 
 impl SeenProbe {
     /// The variances a plan splits by: the larger of `bounds` and the probe's; where the
-    /// probe read nothing, its eight neighbours' largest (a light's image through glass spans
-    /// pixels, and the probe's film points may have missed it in some of them; where they met
-    /// it, their own measure stands).
+    /// probe looked and read nothing, its eight neighbours' largest (a light's image through
+    /// glass spans pixels, and the probe's film points may have missed it in some of them;
+    /// where they met it, and where the training measured it, their own measure stands).
     #[must_use]
     pub fn planned(&self, bounds: &[f32]) -> Vec<f32> {
         let near = nearby_max(self.width, &self.variance);
@@ -410,7 +417,8 @@ impl SeenProbe {
             .enumerate()
             .map(|(i, &b)| {
                 let own = self.variance.get(i).copied().unwrap_or(0.0);
-                b.max(if own > 0.0 { own } else { near.get(i).copied().unwrap_or(0.0) })
+                let blind = own == 0.0 && self.probed.get(i).copied().unwrap_or(false);
+                b.max(if blind { near.get(i).copied().unwrap_or(0.0) } else { own })
             })
             .collect()
     }
@@ -437,13 +445,13 @@ pub fn probe_seen<A: Accel>(
     render_rays: f64,
 ) -> SeenProbe {
     if !(render_rays > 0.0) {
-        return SeenProbe { width, variance: Vec::new(), rays: 0 };
+        return SeenProbe { width, probed: Vec::new(), variance: Vec::new(), rays: 0 };
     }
-    let probe = delta_pixels(width, stats);
-    let points = PROBE_SHARE * render_rays / delta_prefix_rays(stats, &probe);
+    let probed = delta_pixels(width, stats);
+    let points = PROBE_SHARE * render_rays / delta_prefix_rays(stats, &probed);
     let points = if points.is_finite() { points.max(0.0) as u64 } else { 0 };
-    let (variance, rays) = probed_variance(ctx, seed, &probe, points);
-    SeenProbe { width, variance, rays }
+    let (variance, rays) = probed_variance(ctx, seed, &probed, points);
+    SeenProbe { width, probed, variance, rays }
 }
 
 /// What reaches the camera at `eye` from point `to` (the light's own surface excluded): zero
@@ -594,8 +602,8 @@ mod tests {
     }
 
     /// A probe's hit spreads to the eight neighbours and no further; the delta pixels are those
-    /// whose samples traced more than the camera's ray, and their neighbours; a film point's
-    /// cost is the mean prefix over them.
+    /// whose samples traced more than the camera's ray, and their neighbours, less those whose
+    /// training met light along the prefix; a film point's cost is the mean prefix over them.
     #[test]
     fn probes_reach_the_neighbours() {
         let mut v = vec![0.0f32; 20];
@@ -614,13 +622,15 @@ mod tests {
             assert_eq!(n, want, "pixel ({x}, {y})");
         }
         // Four samples: one ray each, except pixel (4, 3), which traced 10.
+        // Pixel (3, 2) met light along its prefix: its training measured it.
         let mut sums = vec![[0.0, 0.0, 0.0, 0.0, 4.0]; 20];
         sums[19][4] = 10.0;
+        sums[13] = [2.0, 4.0, 0.0, 0.0, 4.0];
         let st = SeenStats { samples: 4, sums, rays: 0 };
         let d = delta_pixels(5, &st);
         let marked: Vec<usize> = (0..20).filter(|&i| d[i]).collect();
-        assert_eq!(marked, vec![13, 14, 18, 19]);
-        assert!((delta_prefix_rays(&st, &d) - (1.0 * 3.0 + 2.5) / 4.0).abs() < 1e-12);
+        assert_eq!(marked, vec![14, 18, 19]);
+        assert!((delta_prefix_rays(&st, &d) - (1.0 * 2.0 + 2.5) / 3.0).abs() < 1e-12);
         assert_eq!(delta_prefix_rays(&st, &[false; 20]), 1.0);
     }
 
