@@ -444,7 +444,7 @@ pub fn probe_seen<A: Accel>(
     stats: &SeenStats,
     render_rays: f64,
 ) -> SeenProbe {
-    if !(render_rays > 0.0) {
+    if render_rays.is_nan() || render_rays <= 0.0 {
         return SeenProbe { width, probed: Vec::new(), variance: Vec::new(), rays: 0 };
     }
     let probed = delta_pixels(width, stats);
