@@ -135,21 +135,36 @@ pub fn split_seen<A: Accel>(
     scratch: &mut Scratch,
 ) -> Vec3A {
     let m = u32::from(m.max(1));
-    let inv = 1.0 / m as f32;
     let mut sum = Vec3A::ZERO;
+    for_each_stratum(ctx, pixel, m, rng, scratch, |seen| sum += seen);
+    let inv = 1.0 / m as f32;
+    sum * (inv * inv)
+}
+
+/// The seen term through each of `m × m` stratified film points of `pixel` (jittered in each
+/// stratum of the pixel filter's sample square, row by row), handed to `each`.
+#[inline]
+fn for_each_stratum<A: Accel>(
+    ctx: &RenderContext<A>,
+    pixel: UVec2,
+    m: u32,
+    rng: &mut SampleStream,
+    scratch: &mut Scratch,
+    mut each: impl FnMut(Vec3A),
+) {
+    let inv = 1.0 / m as f32;
     for j in 0..m {
         for i in 0..m {
             let u = rng.next_2d();
             let u = Vec2::new(((i as f32 + u.x) * inv).min(0.999_999_94), ((j as f32 + u.y) * inv).min(0.999_999_94));
             let film = ctx.scene.camera.film_point(pixel, u);
-            sum += if ctx.volumetric {
+            each(if ctx.volumetric {
                 super::volume::seen_emission_volume(ctx, film, rng, scratch)
             } else {
                 seen_emission(ctx, film, rng, scratch)
-            };
+            });
         }
     }
-    sum * (inv * inv)
 }
 
 /// Points per square pixel of a light's image that [`projected_variance`] looks through at
@@ -279,25 +294,9 @@ pub const PROBE_SHARE: f64 = 0.05;
 #[must_use]
 pub fn delta_pixels(width: u32, stats: &SeenStats) -> Vec<bool> {
     let n = stats.samples.max(1) as f64;
-    let height = stats.sums.len() / width.max(1) as usize;
-    let w = width as usize;
-    let own: Vec<bool> = stats.sums.iter().map(|s| s[4] / n > 1.0 + 1e-9).collect();
-    let mut out = vec![false; own.len()];
-    for y in 0..height {
-        for x in 0..w {
-            if own[y * w + x] {
-                for yy in y.saturating_sub(1)..(y + 2).min(height) {
-                    for xx in x.saturating_sub(1)..(x + 2).min(w) {
-                        out[yy * w + xx] = true;
-                    }
-                }
-            }
-        }
-    }
-    for (o, st) in out.iter_mut().zip(&stats.sums) {
-        *o &= st[1] == 0.0;
-    }
-    out
+    let own: Vec<f32> = stats.sums.iter().map(|s| if s[4] / n > 1.0 + 1e-9 { 1.0 } else { 0.0 }).collect();
+    // Neighbours included, less the pixels whose training met light along the prefix.
+    nearby_max(width, &own).into_iter().zip(&stats.sums).map(|(v, s)| v > 0.0 && s[1] == 0.0).collect()
 }
 
 /// Each pixel's largest value among itself and its eight neighbours (`values` row-major,
@@ -350,7 +349,6 @@ pub fn probed_variance<A: Accel>(ctx: &RenderContext<A>, seed: u64, probe: &[boo
     // Film points per pixel: a square number, at least 16.
     let per = (points / count).clamp(16, u64::from(PROBE_POINTS_PER_PIXEL)) as u32;
     let side = (f64::from(per).sqrt() as u32).max(1);
-    let inv = 1.0 / side as f32;
     let k = f64::from(side * side);
     let width = ctx.scene.camera.width;
     let out: Vec<(f32, u64)> = probe
@@ -365,26 +363,13 @@ pub fn probed_variance<A: Accel>(ctx: &RenderContext<A>, seed: u64, probe: &[boo
             let pixel = UVec2::new(i as u32 % width, i as u32 / width);
             let mut rng = SampleStream::in_domain(Domain::SeenProbe, seed, i as u64, 0);
             let (mut sum, mut sq) = (0.0f64, 0.0f64);
-            for j in 0..side {
-                for l in 0..side {
-                    let u = rng.next_2d();
-                    let u = Vec2::new(
-                        ((l as f32 + u.x) * inv).min(0.999_999_94),
-                        ((j as f32 + u.y) * inv).min(0.999_999_94),
-                    );
-                    let film = ctx.scene.camera.film_point(pixel, u);
-                    let seen = if ctx.volumetric {
-                        super::volume::seen_emission_volume(ctx, film, &mut rng, scratch)
-                    } else {
-                        seen_emission(ctx, film, &mut rng, scratch)
-                    };
-                    let s = f64::from(seen.element_sum());
-                    if s.is_finite() {
-                        sum += s;
-                        sq += s * s;
-                    }
+            for_each_stratum(ctx, pixel, side, &mut rng, scratch, |seen| {
+                let s = f64::from(seen.element_sum());
+                if s.is_finite() {
+                    sum += s;
+                    sq += s * s;
                 }
-            }
+            });
             let mean = sum / k;
             (((sq / k - mean * mean).max(0.0)) as f32, scratch.rays - before)
         })
