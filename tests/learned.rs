@@ -12,7 +12,7 @@ use common::*;
 use std::sync::OnceLock;
 use zvidpt::accel::BvhAccel;
 use zvidpt::film::Image;
-use zvidpt::integrator::{LearnedSettings, LearnedZvidpt, PathTracer, Roulette};
+use zvidpt::integrator::{Integrator, LearnedSettings, LearnedZvidpt, PathTracer, Roulette};
 use zvidpt::render::{RenderSettings, render};
 use zvidpt::scene::Scene;
 use zvidpt::stats::family_z_bound;
@@ -238,7 +238,7 @@ fn seen_probe_finds_a_light_in_a_mirror_that_training_missed() {
 /// through glass and in a plastic coat) the learned walk with the training's plan (which must
 /// split some pixels) and path split 3×3 in every pixel against a 16384-spp path reference,
 /// per 8×8 block and image-wide, Šidák-corrected to a family-wise 1e-3 per image (measured:
-/// blocks 3.14 and 2.59 against a bound of 4.19). It fails when a split is averaged over m
+/// blocks 3.31 and 2.59 against a bound of 4.19). It fails when a split is averaged over m
 /// film points instead of m² (block z 82.9), when the learned walk also counts the light
 /// behind delta lobes that the split counts (5.4), and when the path tracer does (10.7).
 #[test]
@@ -254,7 +254,7 @@ fn seen_light_split_over_the_pixel_is_unbiased() {
     // block |z| 4.53 (image 0.33), seeds 22 and 23 3.29 and 2.52; with every pixel alike
     // seed 21 read 2.09 and seed 22 3.58: the test renders seed 22.
     let settings = LearnedSettings { fallback: false, caustic_photons: 0, ..LearnedSettings::default() };
-    let mut learned = LearnedZvidpt::new(settings);
+    let mut learned = LearnedZvidpt::new(settings.clone());
     let img = render_bvh(&scene, &mut learned, 2048, 22);
     let (split, most) = learned.seen_plan().expect("the training planned the split").split_pixels();
     assert!(split > 0 && most > 1, "no pixel split: {split} at {most}");
@@ -267,5 +267,17 @@ fn seen_light_split_over_the_pixel_is_unbiased() {
             "{name}: {split} pixels split (up to {most}x{most}); blocks max |z| {zb:.2} (bound {bound:.2}, {n} tests), image {zg:.2} (bound {gbound:.2})"
         );
         assert!(zb < bound && zg < gbound, "{name} disagrees with the path reference");
-    }
+    } // A short render: the training's share of the image is large, and the pixels where the
+    // probe met a sliver of light take the final passes alone. Their 8×8 blocks carry rare
+    // large samples that 128 spp measure badly (seeds 23–30 read block |z| 3.3–4.8), so the
+    // image as a whole is tested (per channel). With the training kept in those pixels its
+    // rare hits of the slivers read |z| 9.20 at this seed (3.97 and 12.45 at seeds 26 and 29).
+    let mut short = LearnedZvidpt::new(settings);
+    let img = render_bvh(&scene, &mut short, 128, 24);
+    let excluded = short.prior_samples().map_or(0, |p| p.excluded());
+    assert!(excluded > 0, "no sliver left the training out");
+    let zg = max_block_z_both(&img, &reference, 32).0;
+    let gbound = family_z_bound(3, 1e-3);
+    eprintln!("zvidpt 128 spp: {excluded} pixels without the training; image {zg:.2} (bound {gbound:.2})");
+    assert!(zg < gbound, "the short render disagrees with the path reference");
 }

@@ -22,6 +22,13 @@
 //! weighed by its own variance, a 32-spp pass that saw a sub-pixel light less often than its
 //! variance needs took a share of the image above its share of the samples (Bitterli's
 //! veach-mis, 32 of 284 spp).
+//!
+//! A pixel the final passes sample far better than these passes did (a light's image seen
+//! through glass over a sliver of it, which the final passes split over many film points and
+//! the training met once in hundreds of renders) may leave these passes out altogether
+//! ([`PriorSamples::exclude`]), decided from what is independent of the pixel's own samples.
+//! Kept in, they weigh as much there as anywhere: most renders read the training's miss over
+//! its share of the pixel, and a rare one the training's hit, hundreds of times the pixel.
 
 /// Per-pixel sums (row-major, linear RGB) of passes taken before the final passes, already
 /// weighted; [`Self::combine`] adds the final passes.
@@ -42,6 +49,8 @@ pub struct PriorSamples {
     /// The pass added last, not yet weighed: its sample count, sums, sums of squares and
     /// measured variance per parity.
     pending: Option<Pending>,
+    /// Per pixel, whether these passes are left out of it ([`Self::exclude`]); empty for none.
+    excluded: Vec<bool>,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -51,6 +60,10 @@ struct Pending {
     sum_sq: Vec<[f64; 3]>,
     variance: [f64; 2],
 }
+
+/// The tag of the pixels left out in [`PriorSamples::encode`]'s output (after the pending
+/// pass's tag 1; a partial file's per-pixel counts use another).
+const EXCLUDED_TAG: u8 = 2;
 
 /// Variances are kept within these bounds, so weights stay finite and positive.
 const VARIANCE_RANGE: (f64, f64) = (1e-30, 1e30);
@@ -133,6 +146,11 @@ impl PriorSamples {
                 }
             }
         }
+        // The pixels left out, if any, follow (files without them end here).
+        if self.excluded.iter().any(|&e| e) {
+            out.push(EXCLUDED_TAG);
+            out.extend(self.excluded.iter().map(|&e| u8::from(e)));
+        }
     }
 
     /// Reads what [`Self::encode`] wrote from the front of `bytes` (advancing it); `None` if it
@@ -179,7 +197,19 @@ impl PriorSamples {
             }
             _ => None,
         };
-        Some(Self { spp, width, weighted, variance, weight, last, pending })
+        let excluded = match bytes.split_first() {
+            Some((&EXCLUDED_TAG, rest)) if rest.len() >= pixels => {
+                let (mask, rest) = rest.split_at(pixels);
+                if mask.iter().any(|&b| b > 1) {
+                    return None;
+                }
+                *bytes = rest;
+                mask.iter().map(|&b| b == 1).collect()
+            }
+            Some((&EXCLUDED_TAG, _)) => return None,
+            _ => Vec::new(),
+        };
+        Some(Self { spp, width, weighted, variance, weight, last, pending, excluded })
     }
 
     #[must_use]
@@ -193,6 +223,22 @@ impl PriorSamples {
             weight: [0.0; 2],
             last: None,
             pending: None,
+            excluded: Vec::new(),
+        }
+    }
+
+    /// Pixels these passes are left out of ([`Self::exclude`]).
+    #[must_use]
+    pub fn excluded(&self) -> usize {
+        self.excluded.iter().filter(|&&e| e).count()
+    }
+
+    /// Leaves these passes out of the pixels `pixels` marks (row-major), wherever the final
+    /// passes take a sample of them. The marks must not depend on those pixels' own samples
+    /// in these passes, or the image is biased. Ignored unless `pixels` covers the image.
+    pub fn exclude(&mut self, pixels: &[bool]) {
+        if pixels.len() == self.weighted.len() {
+            self.excluded = pixels.to_vec();
         }
     }
 
@@ -306,7 +352,8 @@ impl PriorSamples {
             let n = f64::from(spp);
             // A pixel of parity p is weighted by the other parity's variance.
             let w = [n / v[1], n / v[0]];
-            let a = scale[p];
+            let out = spp > 0 && self.excluded.get(i).copied().unwrap_or(false);
+            let a = if out { 0.0 } else { scale[p] };
             let total = a * self.weight[p] + w[p];
             if total <= 0.0 {
                 continue;
@@ -337,6 +384,45 @@ mod tests {
         let sum = values.iter().map(|v| v.map(|x| x * n)).collect();
         let sum_sq = values.iter().map(|v| v.map(|x| n * (x * x + spread * spread))).collect();
         (sum, sum_sq)
+    }
+
+    /// A pixel left out takes the final passes alone (their mean and variance); the others
+    /// are combined as before, and the marks survive encoding.
+    #[test]
+    fn excluded_pixels_take_the_final_passes_alone() {
+        let (w, h) = (4, 3);
+        let mut prior = PriorSamples::new(w, h);
+        let (s, q) = pass(&vec![[1.0; 3]; 12], 4, 2.0);
+        assert!(prior.add_pass(4, &s, &q));
+        let (fs, fq) = pass(&vec![[2.0; 3]; 12], 4, 1.0);
+        let kept = prior.combine(4, None, &fs, &fq);
+        let mut marks = vec![false; 12];
+        marks[5] = true;
+        prior.exclude(&marks);
+        let mut bytes = Vec::new();
+        prior.encode(&mut bytes);
+        let decoded = PriorSamples::decode(&mut bytes.as_slice(), 12).expect("decodes");
+        assert_eq!(decoded, prior);
+        let (pixels, variance) = decoded.combine(4, None, &fs, &fq);
+        for i in 0..12 {
+            if i == 5 {
+                assert!((pixels[i][0] - 2.0).abs() < 1e-6, "{:?}", pixels[i]);
+                // Var(mean) = (4/3)/4 of the final pass, × 8 samples.
+                assert!((variance[i][0] - 8.0 / 3.0).abs() < 1e-4, "{:?}", variance[i]);
+            } else {
+                assert_eq!((pixels[i], variance[i]), (kept.0[i], kept.1[i]));
+            }
+        }
+        // A pixel without final samples keeps the training's.
+        let counts: Vec<u32> = (0..12).map(|i| if i == 5 { 0 } else { 4 }).collect();
+        let (pixels, _) = decoded.combine(4, Some(&counts), &fs, &fq);
+        assert!((pixels[5][0] - 1.0).abs() < 1e-6, "{:?}", pixels[5]);
+        // Marks of the wrong size are ignored; a truncated mark section is refused.
+        let mut other = PriorSamples::new(w, h);
+        other.exclude(&[true; 3]);
+        assert!(other.excluded.is_empty());
+        bytes.pop();
+        assert!(PriorSamples::decode(&mut bytes.as_slice(), 12).is_none());
     }
 
     #[test]

@@ -17,6 +17,7 @@ use crate::accel::Accel;
 use crate::geometry::{Ray, UVec2, Vec2, Vec3A};
 use crate::sampler::{Domain, SampleStream, survival_probability};
 use crate::scene::SurfaceInteraction;
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
 /// Strata per axis where nothing is split.
@@ -83,21 +84,41 @@ pub fn seen_emission<A: Accel>(
     rng: &mut SampleStream,
     scratch: &mut Scratch,
 ) -> Vec3A {
+    trace_seen(ctx, film, rng, scratch).0
+}
+
+/// Where a delta prefix that scattered at least once ended: its last ray and the distance
+/// to the surface that ended it.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PrefixEnd {
+    pub ray: Ray,
+    pub t: f32,
+}
+
+/// [`seen_emission`], and where the prefix ended when it scattered at least once and met a
+/// surface without a delta lobe.
+#[inline]
+fn trace_seen<A: Accel>(
+    ctx: &RenderContext<A>,
+    film: Vec2,
+    rng: &mut SampleStream,
+    scratch: &mut Scratch,
+) -> (Vec3A, Option<PrefixEnd>) {
     let mut ray = ctx.scene.camera.ray(film);
     let (mut weight, mut seen) = (Vec3A::ONE, Vec3A::ZERO);
     let mut segments = 1u32;
     loop {
         scratch.rays += 1;
         if segments > ctx.max_depth {
-            return seen;
+            return (seen, None);
         }
         let Some(hit) = ctx.accel.intersect(&ray) else {
-            return seen;
+            return (seen, None);
         };
         let si = ctx.scene.interaction(&ray, &hit);
         seen += weight * si.emitted();
         let Some(s) = delta_scatter(&si, segments, rng) else {
-            return seen;
+            return (seen, (segments > 1).then_some(PrefixEnd { ray, t: hit.t }));
         };
         weight *= s.weight;
         ray = si.spawn_ray(s.dir);
@@ -136,13 +157,14 @@ pub fn split_seen<A: Accel>(
 ) -> Vec3A {
     let m = u32::from(m.max(1));
     let mut sum = Vec3A::ZERO;
-    for_each_stratum(ctx, pixel, m, rng, scratch, |seen| sum += seen);
+    for_each_stratum(ctx, pixel, m, rng, scratch, |seen, _| sum += seen);
     let inv = 1.0 / m as f32;
     sum * (inv * inv)
 }
 
 /// The seen term through each of `m × m` stratified film points of `pixel` (jittered in each
-/// stratum of the pixel filter's sample square, row by row), handed to `each`.
+/// stratum of the pixel filter's sample square, row by row), handed to `each` with where its
+/// prefix ended.
 #[inline]
 fn for_each_stratum<A: Accel>(
     ctx: &RenderContext<A>,
@@ -150,7 +172,7 @@ fn for_each_stratum<A: Accel>(
     m: u32,
     rng: &mut SampleStream,
     scratch: &mut Scratch,
-    mut each: impl FnMut(Vec3A),
+    mut each: impl FnMut(Vec3A, Option<PrefixEnd>),
 ) {
     let inv = 1.0 / m as f32;
     for j in 0..m {
@@ -158,11 +180,12 @@ fn for_each_stratum<A: Accel>(
             let u = rng.next_2d();
             let u = Vec2::new(((i as f32 + u.x) * inv).min(0.999_999_94), ((j as f32 + u.y) * inv).min(0.999_999_94));
             let film = ctx.scene.camera.film_point(pixel, u);
-            each(if ctx.volumetric {
-                super::volume::seen_emission_volume(ctx, film, rng, scratch)
+            let (seen, end) = if ctx.volumetric {
+                super::volume::trace_seen_volume(ctx, film, rng, scratch)
             } else {
-                seen_emission(ctx, film, rng, scratch)
-            });
+                trace_seen(ctx, film, rng, scratch)
+            };
+            each(seen, end);
         }
     }
 }
@@ -281,22 +304,103 @@ pub fn projected_variance<A: Accel>(ctx: &RenderContext<A>) -> Vec<f32> {
 }
 
 /// Film points [`probed_variance`] traces in one pixel at most.
-pub const PROBE_POINTS_PER_PIXEL: u32 = 4096;
+pub const PROBE_POINTS_PER_PIXEL: u32 = 16_384;
+/// Film points the probe's first look traces in one pixel at most.
+pub const PROBE_FIRST_POINTS: u32 = 1024;
+/// The share of the probe's rays its first look may take; the rest go to the pixels whose
+/// prefixes passed near a light ([`NEAR_LIGHT`]).
+pub const PROBE_FIRST_SHARE: f64 = 0.25;
+/// A prefix whose last ray passes within this many of a light triangle's radii of its centre
+/// (the nearest light to where the ray ended) passes near that light: its pixel may see the
+/// light over a sliver too small for the first look to have met.
+pub const NEAR_LIGHT: f32 = 8.0;
+/// A pixel whose first look met light through this many film points has its measure: it is
+/// not looked at twice.
+pub const MEASURED_HITS: u32 = 16;
 /// The share of the render's rays the seen light's probe may take: where many pixels see
 /// glass or mirrors, each gets fewer film points.
 pub const PROBE_SHARE: f64 = 0.05;
 
-/// The pixels whose training samples' delta prefixes went past the camera's ray (some first
-/// hit had a delta lobe: glass, a mirror), and their neighbours, where none of the training's
-/// samples met light along the prefix: where a light may be seen through delta scatters
-/// that the training cannot have measured (where it met one, its measure stands). `stats`
-/// as [`plan`] reads them.
+/// The emitting triangles' centres and radii, nearest first from any point: how close a
+/// ray passes to a light.
+pub(crate) struct LightCentres {
+    tree: Option<ImmutableKdTree<f32, 3>>,
+    centres: Vec<Vec3A>,
+    radii: Vec<f32>,
+}
+
+impl LightCentres {
+    /// The emitting triangles of `scene`.
+    pub(crate) fn new(scene: &crate::scene::Scene) -> Self {
+        let (mut centres, mut radii) = (Vec::new(), Vec::new());
+        for (t, tri) in scene.triangles.iter().enumerate() {
+            if scene.material_of(t as u32).emission == Vec3A::ZERO {
+                continue;
+            }
+            let c = (tri[0] + tri[1] + tri[2]) / 3.0;
+            let r = tri.iter().map(|v| v.distance(c)).fold(0.0f32, f32::max);
+            if c.is_finite() && r.is_finite() && r > 0.0 {
+                centres.push(c);
+                radii.push(r);
+            }
+        }
+        let points: Vec<[f32; 3]> = centres.iter().map(|c| c.to_array()).collect();
+        let tree = if points.is_empty() { None } else { ImmutableKdTree::new_from_slice(&points).ok() };
+        Self { tree, centres, radii }
+    }
+
+    /// How near `end`'s ray passes to the light triangle nearest to where it ended: its
+    /// distance from the triangle's centre in the triangle's radii, infinite where there is
+    /// none or it lies behind the ray.
+    pub(crate) fn nearness(&self, end: &PrefixEnd) -> f32 {
+        let Some(tree) = &self.tree else {
+            return f32::INFINITY;
+        };
+        let x = end.ray.origin + end.ray.dir * end.t;
+        if !x.is_finite() {
+            return f32::INFINITY;
+        }
+        let near = tree.query(&x.to_array()).nearest_one::<SquaredEuclidean<f32>>().execute();
+        let j = near.item as usize;
+        let (Some(&c), Some(&r)) = (self.centres.get(j), self.radii.get(j)) else {
+            return f32::INFINITY;
+        };
+        let v = c - end.ray.origin;
+        let along = v.dot(end.ray.dir);
+        if along <= 0.0 {
+            return f32::INFINITY;
+        }
+        (v - end.ray.dir * along).length() / r
+    }
+}
+
+/// The pixels next to one whose training samples' delta prefixes went past the camera's ray
+/// (some first hit had a delta lobe: glass, a mirror): where a light may be seen through
+/// delta scatters over a share of the pixel too small for the training to have measured.
+/// A pixel's own samples do not mark it (its neighbours' do), so what the probe decides for
+/// it is independent of its own training samples (see [`SeenProbe::sliver`]). `stats` as
+/// [`plan`] reads them.
 #[must_use]
 pub fn delta_pixels(width: u32, stats: &SeenStats) -> Vec<bool> {
     let n = stats.samples.max(1) as f64;
-    let own: Vec<f32> = stats.sums.iter().map(|s| if s[4] / n > 1.0 + 1e-9 { 1.0 } else { 0.0 }).collect();
-    // Neighbours included, less the pixels whose training met light along the prefix.
-    nearby_max(width, &own).into_iter().zip(&stats.sums).map(|(v, s)| v > 0.0 && s[1] == 0.0).collect()
+    let own: Vec<bool> = stats.sums.iter().map(|s| s[4] / n > 1.0 + 1e-9).collect();
+    let w = width.max(1) as usize;
+    let h = own.len() / w;
+    let mut out = vec![false; own.len()];
+    for y in 0..h {
+        for x in 0..w {
+            if own[y * w + x] {
+                for yy in y.saturating_sub(1)..(y + 2).min(h) {
+                    for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                        if (xx, yy) != (x, y) {
+                            out[yy * w + xx] = true;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    out
 }
 
 /// Each pixel's largest value among itself and its eight neighbours (`values` row-major,
@@ -333,48 +437,130 @@ pub fn delta_prefix_rays(stats: &SeenStats, probe: &[bool]) -> f64 {
 }
 
 /// The seen term's per-sample variance (channels summed) in the pixels `probe` marks,
-/// measured from many stratified film points of each ([`PROBE_POINTS_PER_PIXEL`] at most,
-/// `points` over all, at least 16 each), their delta prefixes traced as [`split_seen`] traces them; 0
-/// elsewhere. A light seen through glass or in a mirror over a small share of a pixel (a
-/// lamp's image in a glass egg: 1/760 of a pixel on Bitterli's veach-bidir) is one the
-/// training's few samples rarely meet, so a plan from the training alone leaves that pixel a
-/// lottery. The film points are the probe's own streams, apart from the render's samples, so
-/// a plan built from them keeps every sample unbiased. Also returns the rays traced.
+/// measured from many stratified film points of each, their delta prefixes traced as
+/// [`split_seen`] traces them; 0 elsewhere. A light seen through glass or in a mirror over a
+/// small share of a pixel (a lamp's image in a glass egg: 1/1,300 of a pixel on Bitterli's
+/// veach-bidir at an eighth of its film) is one the training's few samples rarely meet, so a
+/// plan from the training alone leaves that pixel a lottery. The probe looks twice: first
+/// every marked pixel through up to [`PROBE_FIRST_POINTS`] film points ([`PROBE_FIRST_SHARE`]
+/// of `points`, at least 16 each), then the pixels where some prefix's last ray passed near
+/// a light ([`NEAR_LIGHT`]) and few film points met one ([`MEASURED_HITS`]), nearest first,
+/// each through up to [`PROBE_POINTS_PER_PIXEL`] in all, while the rays of the rest of
+/// `points` last: a sliver met by 1 film point in 1,300, which an even share of the film
+/// points (about 2,200 a pixel there) misses in about one render in six, is met about 12
+/// times.
+/// The film points are the probe's own streams, apart from the render's samples, so a plan
+/// built from them keeps every sample unbiased.
 #[must_use]
-pub fn probed_variance<A: Accel>(ctx: &RenderContext<A>, seed: u64, probe: &[bool], points: u64) -> (Vec<f32>, u64) {
+pub fn probed_variance<A: Accel>(ctx: &RenderContext<A>, seed: u64, probe: &[bool], points: u64) -> SeenProbe {
+    let width = ctx.scene.camera.width;
     let count = probe.iter().filter(|&&p| p).count() as u64;
     if count == 0 {
-        return (vec![0.0; probe.len()], 0);
+        return SeenProbe { width, probed: probe.to_vec(), variance: vec![0.0; probe.len()], ..SeenProbe::default() };
     }
-    // Film points per pixel: a square number, at least 16.
-    let per = (points / count).clamp(16, u64::from(PROBE_POINTS_PER_PIXEL)) as u32;
-    let side = (f64::from(per).sqrt() as u32).max(1);
-    let k = f64::from(side * side);
-    let width = ctx.scene.camera.width;
-    let out: Vec<(f32, u64)> = probe
+    let lights = LightCentres::new(ctx.scene);
+    // One look at pixel `i` through `side × side` film points of stream `look`.
+    let look = |i: usize, side: u32, look: u64, scratch: &mut Scratch| {
+        let before = scratch.rays;
+        let pixel = UVec2::new(i as u32 % width, i as u32 / width);
+        let mut rng = SampleStream::in_domain(Domain::SeenProbe, seed, i as u64, look);
+        let mut l = Look { points: u64::from(side * side), ..Look::default() };
+        for_each_stratum(ctx, pixel, side, &mut rng, scratch, |seen, end| {
+            let s = f64::from(seen.element_sum());
+            if s.is_finite() && s > 0.0 {
+                l.sum += s;
+                l.square += s * s;
+                l.hits += 1;
+            }
+            if let Some(end) = end {
+                l.near = l.near.min(lights.nearness(&end));
+            }
+        });
+        l.rays = scratch.rays - before;
+        l
+    };
+    // Film points per pixel: a square number.
+    let side_of = |per: u64| ((per as f64).sqrt() as u32).max(1);
+    let first = (PROBE_FIRST_SHARE * points as f64) as u64 / count;
+    let side = side_of(first.clamp(16, u64::from(PROBE_FIRST_POINTS)));
+    let mut looks: Vec<Look> = probe
         .par_iter()
         .enumerate()
         .with_min_len(64)
-        .map_init(Scratch::default, |scratch, (i, &on)| {
-            if !on {
-                return (0.0, 0);
+        .map_init(Scratch::default, |scratch, (i, &on)| if on { look(i, side, 0, scratch) } else { Look::default() })
+        .collect();
+    // The second look: the pixels where a prefix passed near a light and few film points met
+    // one, nearest first, each through as many film points as the rest of the rays allow
+    // (a film point costing its pixel's prefix as the first look traced it).
+    let (first_points, first_rays) = looks.iter().fold((0u64, 0u64), |(p, r), l| (p + l.points, r + l.rays));
+    let mut rest = points as f64 * first_rays as f64 / first_points.max(1) as f64 - first_rays as f64;
+    let mut near: Vec<usize> =
+        (0..looks.len()).filter(|&i| looks[i].near <= NEAR_LIGHT && looks[i].hits < MEASURED_HITS).collect();
+    near.sort_by(|&a, &b| looks[a].near.total_cmp(&looks[b].near).then(a.cmp(&b)));
+    let cap = u64::from(PROBE_POINTS_PER_PIXEL).saturating_sub(u64::from(side * side));
+    let mut second: Vec<(usize, u32)> = Vec::new();
+    for i in near {
+        let cost = looks[i].rays.max(1) as f64 / looks[i].points.max(1) as f64;
+        let per = (rest / cost).min(cap as f64);
+        if per.is_nan() || per < 16.0 {
+            break;
+        }
+        let side = side_of(per as u64);
+        rest -= f64::from(side * side) * cost;
+        second.push((i, side));
+    }
+    let more: Vec<(usize, Look)> = second
+        .par_iter()
+        .with_min_len(1)
+        .map_init(Scratch::default, |scratch, &(i, side)| (i, look(i, side, 1, scratch)))
+        .collect();
+    for (i, m) in more {
+        let l = &mut looks[i];
+        (l.sum, l.square, l.points, l.rays) =
+            (l.sum + m.sum, l.square + m.square, l.points + m.points, l.rays + m.rays);
+    }
+    let variance = looks
+        .iter()
+        .map(|l| {
+            if l.points > 0 {
+                let k = l.points as f64;
+                let mean = l.sum / k;
+                (l.square / k - mean * mean).max(0.0) as f32
+            } else {
+                0.0
             }
-            let before = scratch.rays;
-            let pixel = UVec2::new(i as u32 % width, i as u32 / width);
-            let mut rng = SampleStream::in_domain(Domain::SeenProbe, seed, i as u64, 0);
-            let (mut sum, mut sq) = (0.0f64, 0.0f64);
-            for_each_stratum(ctx, pixel, side, &mut rng, scratch, |seen| {
-                let s = f64::from(seen.element_sum());
-                if s.is_finite() {
-                    sum += s;
-                    sq += s * s;
-                }
-            });
-            let mean = sum / k;
-            (((sq / k - mean * mean).max(0.0)) as f32, scratch.rays - before)
         })
         .collect();
-    (out.iter().map(|o| o.0).collect(), out.iter().map(|o| o.1).sum())
+    // Where the probe met light, but its first look rarely did: a sliver of light.
+    let sliver = looks.iter().map(|l| l.sum > 0.0 && l.hits < MEASURED_HITS).collect();
+    SeenProbe {
+        width,
+        probed: probe.to_vec(),
+        variance,
+        rays: looks.iter().map(|l| l.rays).sum(),
+        refined: second.len(),
+        sliver,
+    }
+}
+
+/// What one look of the probe saw in a pixel.
+#[derive(Clone, Copy, Debug)]
+struct Look {
+    /// Σ s and Σ s² of the seen term (channels summed) over its film points.
+    sum: f64,
+    square: f64,
+    /// Film points, and those that met light.
+    points: u64,
+    hits: u32,
+    /// The nearest any prefix's last ray passed to a light ([`LightCentres::nearness`]).
+    near: f32,
+    rays: u64,
+}
+
+impl Default for Look {
+    fn default() -> Self {
+        Self { sum: 0.0, square: 0.0, points: 0, hits: 0, near: f32::INFINITY, rays: 0 }
+    }
 }
 
 /// What the seen light's probe measured: each pixel's variance, and the rays it traced.
@@ -387,6 +573,11 @@ pub struct SeenProbe {
     pub variance: Vec<f32>,
     /// Rays the probe traced.
     pub rays: u64,
+    /// Pixels looked at twice (a prefix passed near a light).
+    pub refined: usize,
+    /// Per pixel, whether the probe met light there through few of its first look's film
+    /// points (fewer than [`MEASURED_HITS`]): a light seen over a sliver of the pixel.
+    sliver: Vec<bool>,
 }
 
 impl SeenProbe {
@@ -408,6 +599,23 @@ impl SeenProbe {
             .collect()
     }
 
+    /// Pixels where the probe met light over a sliver ([`Self::sliver`]).
+    #[must_use]
+    pub fn slivers(&self) -> usize {
+        self.sliver.iter().filter(|&&s| s).count()
+    }
+
+    /// The pixels where the probe met light over a sliver of the pixel, the training's passes
+    /// to be left out of them ([`crate::film::PriorSamples::exclude`]): the final passes
+    /// split the seen light there over many film points, while the training's few unsplit
+    /// samples read a miss in most renders and a hit hundreds of times the pixel in a rare
+    /// one. Decided by the probe's own streams in pixels its neighbours' samples marked
+    /// ([`delta_pixels`]), so independent of the pixel's own training samples.
+    #[must_use]
+    pub fn sliver(&self) -> &[bool] {
+        &self.sliver
+    }
+
     /// Raises `bounds` to the probe's own variances (not spread): what a split pixel's seen
     /// term is measured as.
     pub fn raise(&self, bounds: &mut [f32]) {
@@ -417,8 +625,8 @@ impl SeenProbe {
     }
 }
 
-/// The seen light's probe after training: the pixels whose training samples passed a delta
-/// scatter, and their neighbours ([`delta_pixels`]), probed with [`PROBE_SHARE`] of
+/// The seen light's probe after training: the pixels next to one whose training samples
+/// passed a delta scatter ([`delta_pixels`]), probed with [`PROBE_SHARE`] of
 /// `render_rays`, the rays the render will trace, each film point costing the delta prefix's
 /// rays as training measured them ([`probed_variance`]); none where `render_rays` is 0.
 #[must_use]
@@ -430,13 +638,12 @@ pub fn probe_seen<A: Accel>(
     render_rays: f64,
 ) -> SeenProbe {
     if render_rays.is_nan() || render_rays <= 0.0 {
-        return SeenProbe { width, probed: Vec::new(), variance: Vec::new(), rays: 0 };
+        return SeenProbe { width, ..SeenProbe::default() };
     }
     let probed = delta_pixels(width, stats);
     let points = PROBE_SHARE * render_rays / delta_prefix_rays(stats, &probed);
     let points = if points.is_finite() { points.max(0.0) as u64 } else { 0 };
-    let (variance, rays) = probed_variance(ctx, seed, &probed, points);
-    SeenProbe { width, probed, variance, rays }
+    probed_variance(ctx, seed, &probed, points)
 }
 
 /// What reaches the camera at `eye` from point `to` (the light's own surface excluded): zero
@@ -606,17 +813,44 @@ mod tests {
             };
             assert_eq!(n, want, "pixel ({x}, {y})");
         }
-        // Four samples: one ray each, except pixel (4, 3), which traced 10.
-        // Pixel (3, 2) met light along its prefix: its training measured it.
+        // Four samples: one ray each, except pixels (4, 3) and (0, 0), which traced more.
+        // A pixel is marked by its neighbours' samples, never its own: (0, 0)'s neighbours
+        // are, (0, 0) is not; (4, 3)'s neighbours are, (4, 3) is not.
         let mut sums = vec![[0.0, 0.0, 0.0, 0.0, 4.0]; 20];
         sums[19][4] = 10.0;
+        sums[0][4] = 6.0;
+        // Light met along the prefix does not matter.
         sums[13] = [2.0, 4.0, 0.0, 0.0, 4.0];
         let st = SeenStats { samples: 4, sums, rays: 0 };
         let d = delta_pixels(5, &st);
         let marked: Vec<usize> = (0..20).filter(|&i| d[i]).collect();
-        assert_eq!(marked, vec![14, 18, 19]);
-        assert!((delta_prefix_rays(&st, &d) - (1.0 * 2.0 + 2.5) / 3.0).abs() < 1e-12);
+        assert_eq!(marked, vec![1, 5, 6, 13, 14, 18]);
+        // The marked pixels' own samples traced one ray each.
+        assert!((delta_prefix_rays(&st, &d) - 1.0).abs() < 1e-12);
         assert_eq!(delta_prefix_rays(&st, &[false; 20]), 1.0);
+    }
+
+    /// A ray's nearness to a light: its distance from the nearest light triangle's centre in
+    /// that triangle's radii, infinite behind the ray.
+    #[test]
+    fn nearness_counts_in_the_lights_radii() {
+        let c = LightCentres {
+            tree: ImmutableKdTree::new_from_slice(&[[0.0f32, 0.0, 0.0], [10.0, 0.0, 0.0]]).ok(),
+            centres: vec![Vec3A::ZERO, Vec3A::new(10.0, 0.0, 0.0)],
+            radii: vec![0.5, 2.0],
+        };
+        let end = |o: [f32; 3], d: [f32; 3], t: f32| PrefixEnd {
+            ray: Ray::new(Vec3A::from(o), Vec3A::from(d).normalize()),
+            t,
+        };
+        // Past the first light 1 off its centre: 2 radii.
+        assert!((c.nearness(&end([-5.0, 1.0, 0.0], [1.0, 0.0, 0.0], 6.0)) - 2.0).abs() < 1e-5);
+        // Ending by the second light, 1 off its centre: half its radius.
+        assert!((c.nearness(&end([0.0, 1.0, 0.0], [1.0, 0.0, 0.0], 9.5)) - 0.5).abs() < 1e-5);
+        // The nearest light lies behind the ray.
+        assert!(c.nearness(&end([1.0, 0.0, 0.0], [1.0, 0.0, 0.0], -0.5)).is_infinite());
+        let none = LightCentres { tree: None, centres: Vec::new(), radii: Vec::new() };
+        assert!(none.nearness(&end([0.0; 3], [1.0, 0.0, 0.0], 1.0)).is_infinite());
     }
 
     fn stats(sums: Vec<[f64; 5]>, samples: u64) -> SeenStats {

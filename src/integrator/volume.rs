@@ -360,15 +360,17 @@ fn deposit(guide: &VolumeGuide, d: &mut VolumeDeposits, vertices: &[MediumVertex
 }
 
 /// The emission along the camera's delta prefix through film point `film` in a scene with
-/// media (the counterpart of [`super::seen::seen_emission`]): each stretch weighed by the
+/// media (the counterpart of [`super::seen::seen_emission`] and its prefix's end): each stretch weighed by the
 /// transmittance of the medium it crosses (exact for homogeneous media) instead of by sampled
-/// free flights, the delta scatters' throughput as there.
-pub(crate) fn seen_emission_volume<A: Accel>(
+/// free flights, the delta scatters' throughput as there; and where the prefix ended when it
+/// scattered at least once and met a surface without a delta lobe.
+#[inline]
+pub(crate) fn trace_seen_volume<A: Accel>(
     ctx: &RenderContext<A>,
     film: crate::geometry::Vec2,
     rng: &mut SampleStream,
     scratch: &mut Scratch,
-) -> Vec3A {
+) -> (Vec3A, Option<super::seen::PrefixEnd>) {
     let scene = ctx.scene;
     let mut ray = scene.camera.ray(film);
     let mut medium = scene.camera_medium;
@@ -378,20 +380,20 @@ pub(crate) fn seen_emission_volume<A: Accel>(
     loop {
         scratch.rays += 1;
         if segments > ctx.max_depth {
-            return seen;
+            return (seen, None);
         }
         let Some(hit) = ctx.accel.intersect(&ray) else {
-            return seen + weight * along(medium, f32::INFINITY) * scene.lights.environment(ray.dir);
+            return (seen + weight * along(medium, f32::INFINITY) * scene.lights.environment(ray.dir), None);
         };
         weight *= along(medium, hit.t);
         if weight == Vec3A::ZERO {
-            return seen;
+            return (seen, None);
         }
         let si = scene.interaction(&ray, &hit);
         if si.material.bsdf.is_interface() {
             crossings += 1;
             if crossings > MAX_CROSSINGS {
-                return seen;
+                return (seen, None);
             }
             medium = scene.medium_interface(si.prim).after(si.ng, ray.dir, medium);
             ray = si.spawn_ray(ray.dir);
@@ -400,7 +402,7 @@ pub(crate) fn seen_emission_volume<A: Accel>(
         crossings = 0;
         seen += weight * si.emitted();
         let Some(s) = super::seen::delta_scatter(&si, segments, rng) else {
-            return seen;
+            return (seen, (segments > 1).then_some(super::seen::PrefixEnd { ray, t: hit.t }));
         };
         weight *= s.weight;
         medium = scene.medium_interface(si.prim).after(si.ng, s.dir, medium);

@@ -243,7 +243,7 @@ impl Integrator for GuidedVolume {
             self.fell_back = g > p;
         }
         // Where to split the seen light, as the surface walk decides it.
-        let mut seen_probe_rays = 0u64;
+        let (mut seen_probe_rays, mut seen_probe_near, mut slivers) = (0u64, 0usize, 0usize);
         if self.settings.seen_strata > UNSPLIT && !seen_stats.sums.is_empty() {
             let samples = seen_stats.samples as f64 * seen_stats.sums.len() as f64;
             let cost = seen_stats.rays as f64 / samples.max(1.0);
@@ -251,8 +251,9 @@ impl Integrator for GuidedVolume {
             let seconds: f64 = self.iterations.iter().map(|i| i.seconds).sum();
             let rays = if self.settings.seen_probe { render_rays(ctx, &seen_stats, seconds) } else { 0.0 };
             let probe = probe_seen(ctx, seed, width, &seen_stats, rays);
+            prior.exclude(probe.sliver());
             self.seen = Some(plan(width, &seen_stats, &probe.planned(&projected), cost, self.settings.seen_strata));
-            seen_probe_rays = probe.rays;
+            (seen_probe_rays, seen_probe_near, slivers) = (probe.rays, probe.refined, probe.slivers());
         }
         // (Its training splits the seen light where the projection asks from the start, so
         // the training's variances and rays are already those of the render there; where the
@@ -264,7 +265,7 @@ impl Integrator for GuidedVolume {
         let seen = match self.seen.as_ref().map(SeenPlan::split_pixels) {
             Some((n, m)) if n > 0 => {
                 format!(
-                    "; seen light split over the pixel in {n} pixels (up to {m}x{m} film points; delta prefixes probed with {:.2} M rays)",
+                    "; seen light split over the pixel in {n} pixels (up to {m}x{m} film points; delta prefixes probed with {:.2} M rays, {seen_probe_near} pixels twice near a light, {slivers} slivers of light without the training's samples)",
                     seen_probe_rays as f64 / 1e6
                 )
             }

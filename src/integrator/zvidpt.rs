@@ -1203,7 +1203,7 @@ impl Integrator for LearnedZvidpt {
         // Where to split the seen light: from the training's per-pixel variances of it and of
         // the rest, and the lights' projection; the walk's cost in rays per sample.
         let mut projected = Vec::new();
-        let mut seen_probe_rays = 0u64;
+        let (mut seen_probe_rays, mut seen_probe_near, mut slivers) = (0u64, 0usize, 0usize);
         if self.settings.seen_strata > UNSPLIT && !seen_stats.sums.is_empty() {
             let samples = seen_stats.samples as f64 * seen_stats.sums.len() as f64;
             let cost = seen_stats.rays as f64 / samples.max(1.0);
@@ -1211,9 +1211,10 @@ impl Integrator for LearnedZvidpt {
             let seconds: f64 = self.iterations.iter().map(|i| i.seconds).sum();
             let rays = if self.settings.seen_probe { render_rays(ctx, &seen_stats, seconds) } else { 0.0 };
             let probe = probe_seen(ctx, seed, width, &seen_stats, rays);
+            prior.exclude(probe.sliver());
             let planned = probe.planned(&projected);
             probe.raise(&mut projected);
-            seen_probe_rays = probe.rays;
+            (seen_probe_rays, seen_probe_near, slivers) = (probe.rays, probe.refined, probe.slivers());
             self.seen = Some(plan(width, &seen_stats, &planned, cost, self.settings.seen_strata));
         }
         // Each pixel's share of the render's samples, from the per-sample variances and rays
@@ -1250,7 +1251,7 @@ impl Integrator for LearnedZvidpt {
         let seen = match self.seen.as_ref().map(SeenPlan::split_pixels) {
             Some((n, m)) if n > 0 => {
                 format!(
-                    "; seen light split over the pixel in {n} pixels (up to {m}x{m} film points; delta prefixes probed with {:.2} M rays)",
+                    "; seen light split over the pixel in {n} pixels (up to {m}x{m} film points; delta prefixes probed with {:.2} M rays, {seen_probe_near} pixels twice near a light, {slivers} slivers of light without the training's samples)",
                     seen_probe_rays as f64 / 1e6
                 )
             }
