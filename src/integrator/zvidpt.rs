@@ -614,9 +614,9 @@ impl LearnedZvidpt {
 }
 
 /// One pixel's sums over a training pass: of its samples per channel, of their squares, the
-/// parts of [`SeenStats`] (seen, seen², rest, rest², rays of the delta prefix), and the rays
+/// parts of [`SeenStats`] (seen, seen², rest, rest², rays of the delta prefix, seen·rest), and the rays
 /// its samples traced.
-pub(crate) type PixelSums = ([f64; 3], [f64; 3], [f64; 5], f64);
+pub(crate) type PixelSums = ([f64; 3], [f64; 3], [f64; 6], f64);
 
 /// Adds training sample `v`, of seen light `seen` and rest `rest` (channels summed) after
 /// `seen_rays` rays of its delta prefix and `rays` in all, to its pixel's sums.
@@ -630,6 +630,7 @@ pub(crate) fn add_training_sample(p: &mut PixelSums, v: Vec3A, seen: f64, rest: 
     parts[2] += rest;
     parts[3] += rest * rest;
     parts[4] += f64::from(seen_rays);
+    parts[5] += seen * rest;
 }
 
 /// A training pass's rows (row index, its pixels' sums, its rays), sorted by row: every
@@ -651,7 +652,7 @@ pub(crate) fn gather_rows(rows: Vec<(u32, Vec<PixelSums>, u64)>) -> TrainingSums
 pub(crate) struct TrainingSums {
     pub sum: Vec<[f64; 3]>,
     pub sum_sq: Vec<[f64; 3]>,
-    pub seen: Vec<[f64; 5]>,
+    pub seen: Vec<[f64; 6]>,
     pub cost: Vec<f64>,
     pub rays: u64,
 }
@@ -1212,10 +1213,9 @@ impl Integrator for LearnedZvidpt {
             let rays = if self.settings.seen_probe { render_rays(ctx, &seen_stats, seconds) } else { 0.0 };
             let probe = probe_seen(ctx, seed, width, &seen_stats, rays);
             prior.exclude(probe.sliver());
-            let planned = probe.planned(&projected);
             probe.raise(&mut projected);
             (seen_probe_rays, seen_probe_near, slivers) = (probe.rays, probe.refined, probe.slivers());
-            self.seen = Some(plan(width, &seen_stats, &planned, cost, self.settings.seen_strata));
+            self.seen = Some(plan(width, &seen_stats, &projected, cost, self.settings.seen_strata));
         }
         // Each pixel's share of the render's samples, from the per-sample variances and rays
         // the training measured around it, as the render's samples will have them: where the
