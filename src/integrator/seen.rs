@@ -340,10 +340,7 @@ impl LightCentres {
     /// The emitting triangles of `scene`.
     pub(crate) fn new(scene: &crate::scene::Scene) -> Self {
         let (mut centres, mut radii) = (Vec::new(), Vec::new());
-        for (t, tri) in scene.triangles.iter().enumerate() {
-            if scene.material_of(t as u32).emission == Vec3A::ZERO {
-                continue;
-            }
+        for tri in scene.lights.area.prims.iter().filter_map(|&t| scene.triangles.get(t as usize)) {
             let c = (tri[0] + tri[1] + tri[2]) / 3.0;
             let r = tri.iter().map(|v| v.distance(c)).fold(0.0f32, f32::max);
             if c.is_finite() && r.is_finite() && r > 0.0 {
@@ -462,7 +459,8 @@ pub fn probed_variance<A: Accel>(
                 l.square += s * s;
                 l.hits += 1;
             }
-            if let Some(end) = end {
+            // Only the first look chooses where to look again.
+            if let Some(end) = end.filter(|_| look == 0) {
                 l.near = l.near.min(lights.nearness(&end));
             }
         });
