@@ -1,11 +1,22 @@
-"""zvidpt against Mitsuba 3 on the same Mitsuba scene file, at equal time, in one run.
+"""zvidpt against Mitsuba 3 on the same scene, at equal time, in one run.
 
     pip install mitsuba numpy OpenEXR
     python3 peers/race.py SCENE.xml OUT [--time 20] [--seeds 1,2] [--threads 2] [--ref-spp 8192]
         [--integrators "path;zvidpt"] [--zvidpt BIN] [-D NAME=VALUE ...]
+    python3 peers/race.py SCENE_DIR OUT [--resolution WxH] [...]
 
-Both renderers read SCENE.xml itself (zvidpt's Mitsuba importer), so nothing is translated by
-hand. For each seed:
+Given SCENE.xml, both renderers read the file itself (zvidpt's Mitsuba importer), so nothing
+is translated by hand. Given a zvidpt TOML scene folder of the subset `toml_subset.py` names
+(`scenes/cornell-paper`, `cornell-blocks`, `cornell-classic`, `partition`), it is translated
+exactly: each OBJ's triangles per material written as a PLY file under OUT/mitsuba/ (face
+normals; the winding kept, or reversed where the scene says `reverse_winding`), a `twosided`
+`diffuse` of the material's reflectance, an emitter an `area` light of its radiance (Mitsuba's
+area lights emit on the front only, as zvidpt's) over a black BSDF, a `perspective` sensor
+at `eye` looking at `look_at` with `up` and vertical `fov_y`, an `hdrfilm` with a `box`
+filter, the `multijitter` sampler (film points stratified over the pixel, as zvidpt's and
+Cycles' are; the `independent` sampler's MSE is 10-17x higher on `cornell-classic`, nearly all
+of it on the light's silhouette) and the `path` integrator without a depth limit (Russian
+roulette ends paths). For each seed:
 
 - zvidpt renders with each integrator (a `zvidpt render` flag string; `;` between them) for
   --time seconds, training and pre-passes included;
@@ -23,6 +34,9 @@ translation is checked: the mean of Mitsuba's images against the reference's mea
 channel, with a z statistic whose variance comes from the spread between Mitsuba's seeds
 (per pixel, (a - b)^2 / 2 over two seeds) and the reference's (from its halves); |z| above 4 is
 reported as a mismatch and its MSE is not a race result.
+
+Samples per second (zvidpt's own report; Mitsuba's spp × pixels over its seconds) are in the
+table too: the path tracers' throughput on the same scene and threads.
 
 Writes OUT/race.csv (a row per renderer, integrator and seed) and OUT/race.md.
 """
@@ -73,6 +87,12 @@ def zvidpt_seconds(out):
     return float(m.group(1)) if m else float("nan")
 
 
+def zvidpt_samples_per_second(out):
+    """zvidpt's own figure of the render's samples per second (training included)."""
+    m = re.search(r"([0-9.]+) M samples/s", out)
+    return float(m.group(1)) * 1e6 if m else float("nan")
+
+
 def mitsuba_render(scene, spp, seed):
     import mitsuba as mi
 
@@ -115,7 +135,8 @@ def references(zvidpt, scene, out, ref_spp, extra):
 
 def race_zvidpt(zvidpt, scene, out, integrators, seeds, seconds, extra, ref, ref_noise):
     """zvidpt with each integrator (`;` between flag strings) and seed for `seconds`: a row
-    (renderer, integrator, seed, seconds, MSE less the reference's noise) per render."""
+    (renderer, integrator, seed, seconds, MSE less the reference's noise, samples per second)
+    per render."""
     rows = []
     for flags in [f.split() for f in integrators.split(";") if f.strip()]:
         name = " ".join(flags)
@@ -126,7 +147,7 @@ def race_zvidpt(zvidpt, scene, out, integrators, seeds, seconds, extra, ref, ref
             rgb, _ = read_exr(img)
             secs = zvidpt_seconds(o)
             mse = float(((rgb - ref) ** 2).mean()) - ref_noise
-            rows.append(("zvidpt", name, seed, secs, mse))
+            rows.append(("zvidpt", name, seed, secs, mse, zvidpt_samples_per_second(o)))
             print(f"zvidpt {name} seed {seed}: {secs:.2f} s, MSE {mse:.4g}", flush=True)
     return rows
 
@@ -153,14 +174,14 @@ def write_results(out, name, rows, preamble, mismatched):
     integrator: means over the seeds; `mismatched` (renderer, integrator) pairs are marked)."""
     with open(out / f"{name}.csv", "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["renderer", "integrator", "seed", "seconds", "mse", "mse_x_seconds"])
+        w.writerow(["renderer", "integrator", "seed", "seconds", "mse", "samples_per_second", "mse_x_seconds"])
         for r in rows:
             w.writerow([*r, r[3] * r[4]])
     lines = [
         preamble,
         "",
-        "| renderer | integrator | seconds | MSE | MSE x seconds | spread of MSE x seconds over seeds |",
-        "|---|---|---|---|---|---|",
+        "| renderer | integrator | seconds | samples/s | MSE | MSE x seconds | spread of MSE x seconds over seeds |",
+        "|---|---|---|---|---|---|---|",
     ]
     groups = {}
     for r in rows:
@@ -170,53 +191,145 @@ def write_results(out, name, rows, preamble, mismatched):
         mse = sum(r[4] for r in rs) / len(rs)
         ms = [r[3] * r[4] for r in rs]
         flag = " (translation mismatch)" if (renderer, integrator) in mismatched else ""
-        lines.append(f"| {renderer} | {integrator}{flag} | {secs:.2f} | {mse:.4g} | {sum(ms) / len(ms):.4g} | "
-                     f"{min(ms):.4g} - {max(ms):.4g} |")
+        rate = sum(r[5] for r in rs) / len(rs)
+        rate = f"{rate / 1e6:.2f} M" if math.isfinite(rate) else "-"
+        lines.append(f"| {renderer} | {integrator}{flag} | {secs:.2f} | {rate} | {mse:.4g} | "
+                     f"{sum(ms) / len(ms):.4g} | {min(ms):.4g} - {max(ms):.4g} |")
     (out / f"{name}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     if not all(math.isfinite(r[4]) for r in rows):
         sys.exit("a render produced a non-finite MSE")
 
 
-def main():
-    p = race_arguments(__doc__)
-    p.add_argument("-D", dest="defines", action="append", default=[], metavar="NAME=VALUE")
-    a = p.parse_args()
-    out = Path(a.out)
-    out.mkdir(parents=True, exist_ok=True)
-    seeds = [int(s) for s in a.seeds.split(",")]
-    defines = [x for d in a.defines for x in ("-D", d)]
-    extra = ["--threads", str(a.threads), *defines]
-    ref, ref_pixel_var, ref_noise = references(a.zvidpt, a.scene, out, a.ref_spp, extra)
-    rows = race_zvidpt(a.zvidpt, a.scene, out, a.integrators, seeds, a.time, extra, ref, ref_noise)
+def write_ply(path, triangles):
+    """An ASCII PLY file of unshared triangles."""
+    lines = ["ply", "format ascii 1.0", f"element vertex {3 * len(triangles)}", "property float x",
+             "property float y", "property float z", f"element face {len(triangles)}",
+             "property list uchar int vertex_indices", "end_header"]
+    lines += [" ".join(f"{c:.9g}" for c in p) for tri in triangles for p in tri]
+    lines += [f"3 {3 * k} {3 * k + 1} {3 * k + 2}" for k in range(len(triangles))]
+    path.write_text("\n".join(lines) + "\n")
 
+
+def mitsuba_scene_dict(folder, out, width, height):
+    """The TOML scene of `toml_subset`'s subset as a Mitsuba 3 scene dictionary (see above)."""
+    import mitsuba as mi
+
+    import toml_subset
+
+    peer = "Mitsuba 3"
+    cam, materials, meshes = toml_subset.read_scene(folder, peer)
+    meshes_dir = out / "mitsuba"
+    meshes_dir.mkdir(exist_ok=True)
+
+    def rgb(v):
+        return {"type": "rgb", "value": [float(x) for x in v]}
+
+    d = {
+        "type": "scene",
+        "integrator": {"type": "path", "max_depth": -1},
+        "sensor": {
+            "type": "perspective",
+            "fov": float(cam["fov_y"]),
+            "fov_axis": "y",
+            "to_world": mi.ScalarTransform4f().look_at(origin=cam["eye"], target=cam["look_at"], up=cam["up"]),
+            "film": {"type": "hdrfilm", "width": width or cam["width"], "height": height or cam["height"],
+                     "rfilter": {"type": "box"}, "pixel_format": "rgb"},
+            # Stratified film points, as zvidpt's and Cycles' are: with `independent` the
+            # light's silhouette alone gave 10-17x the MSE (cornell-classic, 128x96, 256 spp).
+            "sampler": {"type": "multijitter"},
+        },
+    }
+    for k, mesh in enumerate(meshes):
+        obj_path = folder / mesh["obj"]
+        kd = toml_subset.mtl_colours(obj_path, peer)
+        groups = toml_subset.obj_groups(obj_path, mesh.get("reverse_winding", False), peer)
+        for g, (name, triangles) in enumerate(groups.items()):
+            material = mesh.get("material", name)
+            if "material" in mesh:
+                m = materials[material]
+                diffuse, emission = m.get("diffuse", [0.5] * 3), m.get("emission", [0.0] * 3)
+            elif name in kd:
+                diffuse, emission = kd[name], [0.0] * 3
+            else:
+                toml_subset.refuse(peer, f"{obj_path.name}: material {name} has no Kd")
+            ply = meshes_dir / f"{k}-{g}-{material}.ply"
+            write_ply(ply, triangles)
+            shape = {"type": "ply", "filename": str(ply), "face_normals": True}
+            if max(emission) > 0:
+                shape["emitter"] = {"type": "area", "radiance": rgb(emission)}
+                shape["bsdf"] = {"type": "diffuse", "reflectance": rgb([0.0] * 3)}
+            else:
+                shape["bsdf"] = {"type": "twosided", "material": {"type": "diffuse", "reflectance": rgb(diffuse)}}
+            d[f"shape-{k}-{g}"] = shape
+    return d
+
+
+def race_mitsuba(load, seeds, seconds, threads, ref, ref_pixel_var, ref_noise):
+    """Mitsuba 3 (`scalar_rgb`, `threads` threads) on the scene `load(mi)` returns, for each seed
+    at the sample count that fills `seconds` (measured by a 4-spp render after a 1-spp
+    warm-up): its rows (as `race_zvidpt`'s, samples per second from spp × pixels over its
+    seconds), whether its mean image matches the reference's, and that check's sentence."""
     import drjit as dr
     import mitsuba as mi
 
     mi.set_variant("scalar_rgb")
-    dr.set_thread_count(a.threads)
-    params = dict(d.split("=", 1) for d in a.defines)
-    scene = mi.load_file(a.scene, **params)
+    dr.set_thread_count(threads)
+    scene = load(mi)
     mitsuba_render(scene, 1, 0)  # warm-up: the first render pays for set-up
     _, t4 = mitsuba_render(scene, 4, 0)
-    spp = max(1, int(a.time / (t4 / 4)))
-    images = []
+    spp = max(1, int(seconds / (t4 / 4)))
+    pixels = ref.shape[0] * ref.shape[1]
+    rows, images = [], []
     for seed in seeds:
         img, secs = mitsuba_render(scene, spp, seed)
+        if img.shape != ref.shape:
+            sys.exit(f"Mitsuba rendered {img.shape}, the reference is {ref.shape}")
         images.append(img)
         mse = float(((img - ref) ** 2).mean()) - ref_noise
-        rows.append(("mitsuba", f"path {spp} spp", seed, secs, mse))
+        rows.append(("mitsuba", f"path {spp} spp", seed, secs, mse, spp * pixels / secs))
         print(f"mitsuba path {spp} spp seed {seed}: {secs:.2f} s, MSE {mse:.4g}", flush=True)
-
     # The translation check: Mitsuba's mean image against the reference's, per channel.
     matched, ratio, z = translation_check(images, ref, ref_pixel_var)
     check = (f"Mitsuba 3 mean / reference mean: {ratio[0]:.4f}, {ratio[1]:.4f}, {ratio[2]:.4f} "
              f"(z {z[0]:.2f}, {z[1]:.2f}, {z[2]:.2f}): {'matches' if matched else 'MISMATCH'}")
-    print(check)
+    print(check, flush=True)
+    return rows, matched, check
+
+
+def main():
+    p = race_arguments(__doc__)
+    p.add_argument("-D", dest="defines", action="append", default=[], metavar="NAME=VALUE")
+    p.add_argument("--resolution", default=None, help="WxH, for a TOML scene folder (default: the scene's)")
+    a = p.parse_args()
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    seeds = [int(s) for s in a.seeds.split(",")]
+    toml = Path(a.scene).is_dir() and (Path(a.scene) / "scene.toml").is_file()
+    if a.resolution and not toml:
+        sys.exit("peers/race.py: --resolution is for a TOML scene folder (a Mitsuba file: -D for its film's size)")
+    if a.defines and toml:
+        sys.exit("peers/race.py: -D is for a Mitsuba file")
+    defines = [x for d in a.defines for x in ("-D", d)]
+    extra = ["--threads", str(a.threads), *defines]
+    width = height = None
+    if a.resolution:
+        width, height = (int(x) for x in a.resolution.lower().split("x"))
+        extra += ["--resolution", a.resolution]
+    ref, ref_pixel_var, ref_noise = references(a.zvidpt, a.scene, out, a.ref_spp, extra)
+    rows = race_zvidpt(a.zvidpt, a.scene, out, a.integrators, seeds, a.time, extra, ref, ref_noise)
+
+    if toml:
+        load = lambda mi: mi.load_dict(mitsuba_scene_dict(Path(a.scene), out, width, height))  # noqa: E731
+    else:
+        params = dict(d.split("=", 1) for d in a.defines)
+        load = lambda mi: mi.load_file(a.scene, **params)  # noqa: E731
+    mitsuba_rows, matched, check = race_mitsuba(load, seeds, a.time, a.threads, ref, ref_pixel_var, ref_noise)
+    rows += mitsuba_rows
     preamble = (f"Equal time {a.time:g} s, {a.threads} threads, seeds {a.seeds}; MSE against `zvidpt reference` "
                 f"(path, {a.ref_spp} spp in two independent halves) less the reference's own noise ({ref_noise:.3g}, "
                 f"from the halves' spread). {check}.")
-    mismatched = set() if matched else {r[:2] for r in rows if r[0] == "mitsuba"}
+    mismatched = set() if matched else {r[:2] for r in mitsuba_rows}
     write_results(out, "race", rows, preamble, mismatched)
 
 

@@ -2,7 +2,7 @@
 
     pip install bpy numpy OpenEXR        # bpy: Blender 5.0 for CPython 3.11
     python3 peers/race_cycles.py SCENE_DIR OUT [--time 20] [--seeds 1,2] [--threads 2] [--ref-spp 8192]
-        [--integrators "path;zvidpt"] [--resolution WxH] [--zvidpt BIN]
+        [--integrators "path;zvidpt"] [--resolution WxH] [--mitsuba] [--zvidpt BIN]
 
 SCENE_DIR is a zvidpt TOML scene of the subset Cycles can be given exactly (`scenes/cornell-paper`,
 `cornell-blocks`, `cornell-classic`, `partition`): a pinhole camera (`eye`, `look_at`, `up`,
@@ -30,71 +30,45 @@ translation is checked: the mean of its images over the seeds against the refere
 channel (z from the seeds' spread and the reference's); a |z| above 4 marks a mismatch and its
 figures are not race results.
 
+With --mitsuba (`pip install mitsuba` too), Mitsuba 3 races in the same run, on the same
+reference, from `race.py`'s translation of the same subset (`scalar_rgb`, `path`, box filter,
+`multijitter` sampler), with its own translation check.
+
 Writes OUT/cycles.csv and OUT/cycles.md.
 """
 import math
 import sys
 import time
-import tomllib
 from pathlib import Path
 
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from race import race_arguments, race_zvidpt, read_exr, references, translation_check, write_results  # noqa: E402
+import toml_subset  # noqa: E402
+from race import (  # noqa: E402
+    mitsuba_scene_dict,
+    race_arguments,
+    race_mitsuba,
+    race_zvidpt,
+    read_exr,
+    references,
+    translation_check,
+    write_results,
+)
 
-MESH_KEYS = {"obj", "material", "reverse_winding"}
-MATERIAL_KEYS = {"diffuse", "emission"}
-CAMERA_KEYS = {"eye", "look_at", "up", "fov_y", "width", "height"}
+PEER = "Cycles"
 
 
 def refuse(message):
-    sys.exit(f"peers/race_cycles.py: {message}: not in the subset Cycles is given exactly")
-
-
-def read_scene(folder):
-    """The TOML scene's camera, meshes and materials, checked against the subset."""
-    d = tomllib.loads((folder / "scene.toml").read_text())
-    for key in d:
-        if key not in {"camera", "materials", "mesh"}:
-            refuse(f"[{key}]")
-    cam = d["camera"]
-    if set(cam) - CAMERA_KEYS:
-        refuse(f"camera keys {sorted(set(cam) - CAMERA_KEYS)}")
-    materials = d.get("materials", {})
-    for name, m in materials.items():
-        if set(m) - MATERIAL_KEYS:
-            refuse(f"material {name} keys {sorted(set(m) - MATERIAL_KEYS)}")
-    meshes = d.get("mesh", [])
-    for m in meshes:
-        if set(m) - MESH_KEYS:
-            refuse(f"mesh keys {sorted(set(m) - MESH_KEYS)}")
-    return cam, materials, meshes
-
-
-def mtl_colours(obj_path):
-    """`Kd` of each material of the OBJ's MTL files."""
-    colours = {}
-    for line in obj_path.read_text().splitlines():
-        if line.startswith("mtllib "):
-            name = None
-            for l in (obj_path.parent / line.split(None, 1)[1].strip()).read_text().splitlines():
-                t = l.split()
-                if t and t[0] == "newmtl":
-                    name = t[1]
-                elif t and t[0] == "Kd" and name:
-                    colours[name] = [float(x) for x in t[1:4]]
-                elif t and t[0] not in ("newmtl", "Kd") and not t[0].startswith("#"):
-                    refuse(f"MTL statement {t[0]}")
-    return colours
+    toml_subset.refuse(PEER, message)
 
 
 def build_cycles_scene(folder, width, height, threads):
     import bpy
     from mathutils import Matrix, Vector
 
-    cam, materials, meshes = read_scene(folder)
+    cam, materials, meshes = toml_subset.read_scene(folder, PEER)
     scene = bpy.context.scene
     # The start-up scene's objects (a cube, a lamp, a camera) go.
     for o in list(bpy.data.objects):
@@ -159,7 +133,7 @@ def build_cycles_scene(folder, width, height, threads):
         before = set(bpy.data.objects)
         bpy.ops.wm.obj_import(filepath=str(obj_path), forward_axis="Y", up_axis="Z")
         imported = [o for o in bpy.data.objects if o not in before]
-        kd = mtl_colours(obj_path)
+        kd = toml_subset.mtl_colours(obj_path, PEER)
         for o in imported:
             if mesh.get("reverse_winding", False):
                 o.data.flip_normals()
@@ -241,6 +215,8 @@ def cycles_render(scene, path, seconds, seed, guiding):
 def main():
     p = race_arguments(__doc__)
     p.add_argument("--resolution", default=None, help="WxH (default: the scene's)")
+    p.add_argument("--mitsuba", action="store_true",
+                   help="race Mitsuba 3 too, in the same run (race.py's translation of the same subset)")
     a = p.parse_args()
     folder = Path(a.scene)
     out = Path(a.out)
@@ -253,6 +229,15 @@ def main():
         extra += ["--resolution", a.resolution]
     ref, ref_pixel_var, ref_noise = references(a.zvidpt, folder, out, a.ref_spp, extra)
     rows = race_zvidpt(a.zvidpt, folder, out, a.integrators, seeds, a.time, extra, ref, ref_noise)
+    mitsuba_check = ""
+    mismatched = set()
+    if a.mitsuba:
+        mitsuba_rows, matched, mitsuba_check = race_mitsuba(
+            lambda mi: mi.load_dict(mitsuba_scene_dict(folder, out, width, height)), seeds, a.time, a.threads, ref,
+            ref_pixel_var, ref_noise)
+        rows += mitsuba_rows
+        mitsuba_check = f" {mitsuba_check}."
+        mismatched |= set() if matched else {r[:2] for r in mitsuba_rows}
 
     scene = build_cycles_scene(folder, width, height, a.threads)
     print(f"Cycles: sampling pattern {scene.cycles.sampling_pattern}", flush=True)
@@ -268,7 +253,7 @@ def main():
                 sys.exit(f"Cycles wrote {rgb.shape}, the reference is {ref.shape}")
             images.append(rgb)
             mse = float(((rgb - ref) ** 2).mean()) - ref_noise
-            rows.append(("cycles", name, seed, secs, mse))
+            rows.append(("cycles", name, seed, secs, mse, float("nan")))
             print(f"cycles {name} seed {seed}: {secs:.2f} s, MSE {mse:.4g}", flush=True)
         matched, ratio, z = translation_check(images, ref, ref_pixel_var)
         print(f"Cycles {name} mean / reference mean: {ratio[0]:.4f}, {ratio[1]:.4f}, {ratio[2]:.4f} "
@@ -281,8 +266,9 @@ def main():
         f"Cycles {scene.cycles.sampling_pattern} sampling pattern. Translation checks (image mean / reference "
         "mean per channel, z): "
         + "; ".join(f"{n}: {r[0]:.4f}, {r[1]:.4f}, {r[2]:.4f} (|z| <= {np.abs(z).max():.2f}, "
-                    f"{'matches' if m else 'MISMATCH'})" for n, (m, r, z) in checks.items()) + ".")
-    mismatched = {("cycles", n) for n, (m, _, _) in checks.items() if not m}
+                    f"{'matches' if m else 'MISMATCH'})" for n, (m, r, z) in checks.items()) + "."
+        + mitsuba_check)
+    mismatched |= {("cycles", n) for n, (m, _, _) in checks.items() if not m}
     write_results(out, "cycles", rows, preamble, mismatched)
 
 
