@@ -246,13 +246,7 @@ def mitsuba_scene_dict(folder, out, width, height):
         groups = toml_subset.obj_groups(obj_path, mesh.get("reverse_winding", False), peer)
         for g, (name, triangles) in enumerate(groups.items()):
             material = mesh.get("material", name)
-            if "material" in mesh:
-                m = materials[material]
-                diffuse, emission = m.get("diffuse", [0.5] * 3), m.get("emission", [0.0] * 3)
-            elif name in kd:
-                diffuse, emission = kd[name], [0.0] * 3
-            else:
-                toml_subset.refuse(peer, f"{obj_path.name}: material {name} has no Kd")
+            diffuse, emission = toml_subset.surface(materials, kd, mesh, name, peer)
             ply = meshes_dir / f"{k}-{g}-{material}.ply"
             write_ply(ply, triangles)
             shape = {"type": "ply", "filename": str(ply), "face_normals": True}

@@ -110,23 +110,12 @@ def build_cycles_scene(folder, width, height, threads):
 
     made = {}
 
-    def material_named(base, from_toml, kd):
-        if base in made:
-            return made[base]
-        if from_toml:
-            m = materials.get(base)
-            if m is None:
-                refuse(f"material {base} not defined")
-            emission = m.get("emission", [0.0, 0.0, 0.0])
-            if max(emission) > 0 and max(m.get("diffuse", [0.0] * 3)) > 0:
-                refuse(f"material {base}: an emitter that also reflects")
-            made[base] = (emitter_material(base, emission) if max(emission) > 0
-                          else diffuse_material(base, m.get("diffuse", [0.5] * 3)))
-        else:
-            if base not in kd:
-                refuse(f"material {base} has no Kd")
-            made[base] = diffuse_material(base, kd[base])
-        return made[base]
+    def material_named(name, mesh, kd):
+        if name not in made:
+            reflectance, radiance = toml_subset.surface(materials, kd, mesh, name, PEER)
+            made[name] = (emitter_material(name, radiance) if max(radiance) > 0
+                          else diffuse_material(name, reflectance))
+        return made[name]
 
     for mesh in meshes:
         obj_path = folder / mesh["obj"]
@@ -139,14 +128,14 @@ def build_cycles_scene(folder, width, height, threads):
                 o.data.flip_normals()
             if "material" in mesh:
                 o.data.materials.clear()
-                o.data.materials.append(material_named(mesh["material"], True, kd))
+                o.data.materials.append(material_named(mesh["material"], mesh, kd))
                 continue
             if not o.material_slots:
                 refuse(f"{obj_path.name}: a mesh without a material")
             for slot in o.material_slots:
                 if slot.material is None:
                     refuse(f"{obj_path.name}: a face without a material")
-                slot.material = material_named(slot.material.name.split(".")[0], False, kd)
+                slot.material = material_named(slot.material.name.split(".")[0], mesh, kd)
 
     eye, target, up = (Vector(cam[k]) for k in ("eye", "look_at", "up"))
     forward = (target - eye).normalized()

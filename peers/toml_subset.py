@@ -57,6 +57,17 @@ def mtl_colours(obj_path, peer):
     return colours
 
 
+def surface(materials, kd, mesh, name, peer):
+    """(reflectance, radiance) of a mesh's faces of OBJ material `name`: the `[materials]` entry
+    the mesh names if it names one, else the MTL's `Kd` of `name` (not an emitter)."""
+    if "material" in mesh:
+        m = materials[mesh["material"]]
+        return m.get("diffuse", [0.5] * 3), m.get("emission", [0.0] * 3)
+    if name not in kd:
+        refuse(peer, f"material {name} has no Kd")
+    return kd[name], [0.0] * 3
+
+
 def obj_groups(obj_path, reverse_winding, peer):
     """The OBJ's triangles grouped by `usemtl` name: {name: [(p0, p1, p2), ...]} (positions only,
     polygons fanned from their first vertex, the winding reversed if asked)."""
